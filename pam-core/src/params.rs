@@ -1,0 +1,91 @@
+//! What a user sets: the paper's critical points and load factors.
+//!
+//! [`Params`] is plain data (it is what the model file and the firmware blob
+//! carry); [`crate::Coeffs::new`] validates it once and precomputes the rest.
+
+/// A point on the pressure–contraction plane.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Point {
+    /// Contraction, fraction of rest length.
+    pub contraction: f32,
+    /// Pressure, MPa.
+    pub pressure_mpa: f32,
+}
+
+/// The four critical points of the constraint model at the minimum load that
+/// the paper's GUI takes (Fig. 2; initial conditions of eq. 7).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CriticalPoints {
+    /// First real root `R1`: contraction at zero pressure (the minimum contraction).
+    pub root_contraction: f32,
+    /// `Rx1`: contraction at the maximum operating pressure.
+    pub max_contraction: f32,
+    /// `Pmax`: maximum operating pressure, MPa.
+    pub max_pressure_mpa: f32,
+    /// Tangency point `(x_tan, y_tan)`.
+    pub tangency: Point,
+    /// Inflection point `(x_inf, y_inf)`.
+    pub inflection: Point,
+}
+
+/// Everything that defines a muscle's model: the critical points at the
+/// minimum load, the linear load factors of eqs. (17)–(19), and the ellipse
+/// height of eq. (24).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Params {
+    /// Minimum calibrated load, N: the load of the critical points (`i = 1`).
+    pub min_load_n: f32,
+    /// Maximum calibrated load, N. Loads above it are refused or clamped.
+    pub max_load_n: f32,
+    /// Load step `ΔL` of the regression and growth factors, N (the paper: 100 N).
+    pub load_step_n: f32,
+    /// Critical points at `min_load_n`.
+    pub points: CriticalPoints,
+    /// `RG_L`: regression of the first real root per load step (eq. 17).
+    pub root_regression_per_step: f32,
+    /// `RG_U`: regression of the maximum contraction per load step (eq. 18).
+    pub max_regression_per_step: f32,
+    /// `GR_c`: growth of the quadratic's constant `c` per load step (eq. 19).
+    pub c_growth_per_step: f32,
+    /// `be`: height of the ellipse offset, MPa (eq. 24; the paper uses 0.02).
+    pub ellipse_height_mpa: f32,
+}
+
+impl Params {
+    /// The built-in reference muscle: a 100–600 N McKibben muscle driven to
+    /// 0.5 MPa, shaped like the paper's Fig. 1 (2 % minimum contraction, about
+    /// 25 % at full pressure under 100 N, ellipse height 0.02 MPa as in
+    /// eq. 24).
+    ///
+    /// Origin: set by hand to the shape of the paper's Fig. 1 and of
+    /// isotonic records of a 100 N-loaded McKibben muscle (steep at both ends
+    /// of the stroke, flat around 0.25 MPa).
+    pub const DEFAULT: Params = Params {
+        min_load_n: 100.0,
+        max_load_n: 600.0,
+        load_step_n: 100.0,
+        points: CriticalPoints {
+            root_contraction: 0.018,
+            max_contraction: 0.25,
+            max_pressure_mpa: 0.5,
+            tangency: Point {
+                contraction: 0.07,
+                pressure_mpa: 0.20,
+            },
+            inflection: Point {
+                contraction: 0.135,
+                pressure_mpa: 0.265,
+            },
+        },
+        root_regression_per_step: 0.003,
+        max_regression_per_step: 0.018,
+        c_growth_per_step: 0.2,
+        ellipse_height_mpa: 0.02,
+    };
+}
