@@ -43,6 +43,7 @@
 pub mod blob;
 pub mod branch;
 pub mod constraint;
+pub mod effects;
 pub mod error;
 pub mod hysteresis;
 pub mod load_family;
@@ -52,6 +53,7 @@ pub mod tracker;
 
 pub use branch::Branch;
 pub use constraint::{FactorCubic, GeneralCubic};
+pub use effects::{Effects, Simulator};
 pub use error::Error;
 pub use hysteresis::LoadModel;
 pub use load_family::Coeffs;

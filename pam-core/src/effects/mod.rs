@@ -1,0 +1,419 @@
+//! Extensions of the paper's model, each a physically meaningful effect with
+//! its own parameters, and [`Simulator`], which runs the paper's model with
+//! any of them from measured `(t_s, pressure_mpa, load_n)` samples.
+//!
+//! | effect | what it adds | parameters |
+//! |---|---|---|
+//! | [`NonLocalMemory`] | minor loops closing at the previous reversal, with wiping-out | `shape` |
+//! | [`RateDependence`] | ellipse height grows with the pressure rate | `scale_at_rest`, `scale_per_mpa_per_s` |
+//! | [`Creep`] | slow first-order relaxation after pressure steps | `gain`, `time_constant_s` |
+//! | [`LoadDependentWidth`] | ellipse height linear in load | `scale_at_min_load`, `scale_per_step` |
+//!
+//! All are `no_std`, allocation-free, and panic-free per sample; the memory
+//! holds at most `N` reversal points (a const generic).
+//!
+//! ```
+//! use pam_core::effects::{Effects, NonLocalMemory, Simulator};
+//! use pam_core::{Coeffs, Params, TrackerConfig};
+//!
+//! let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+//! let effects = Effects {
+//!     memory: Some(NonLocalMemory { shape: 1.0 }),
+//!     ..Effects::NONE
+//! };
+//! let mut sim = Simulator::<16>::new(coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, 100.0).unwrap();
+//! // Up to 0.3 MPa, then back: no jump at the reversal.
+//! let mut x = 0.0;
+//! for k in 0..=300 {
+//!     x = sim.step(k as f32 * 0.02, k as f32 * 0.001, 100.0);
+//! }
+//! let mut after = x;
+//! for k in 1..=10 {
+//!     after = sim.step((300 + k) as f32 * 0.02, 0.3 - k as f32 * 0.001, 100.0);
+//! }
+//! assert!((after - x).abs() < 0.005);
+//! ```
+
+pub mod creep;
+pub mod memory;
+pub mod rate;
+pub mod width;
+
+pub use creep::{Creep, CreepState};
+pub use memory::{NonLocalMemory, Reversal, ReversalStack};
+pub use rate::{RateDependence, RateState};
+pub use width::LoadDependentWidth;
+
+use crate::branch::Branch;
+use crate::error::Error;
+use crate::hysteresis::LoadModel;
+use crate::load_family::Coeffs;
+use crate::math::clamp;
+use crate::tracker::{Tracker, TrackerConfig};
+
+/// Largest factor any effect may put on the ellipse offset `be` of eq. (24).
+pub const MAX_OFFSET_SCALE: f32 = 4.0;
+
+/// Bisection steps of [`branch_contraction`] when the offset is scaled:
+/// the stroke (about 0.25) over 2²⁴ is below 2·10⁻⁸ of contraction.
+pub const SCALED_INVERSE_STEPS: usize = 24;
+
+/// Largest sample interval the time-dependent effects integrate over, s; a
+/// longer gap (or a non-finite or backwards time) holds their state.
+pub const MAX_STEP_S: f32 = 1.0;
+
+/// Inverse model of one branch with the ellipse offset scaled by
+/// `offset_scale`: the contraction `x` in `[R_i, Rx_i]` where
+/// `CM(x) ± offset_scale·y_hys(x) = pressure_mpa` (eqs. 25–26 with the
+/// height `offset_scale·be`).
+///
+/// A scale of exactly 1 is [`LoadModel::contraction`]; otherwise a bisection
+/// of [`SCALED_INVERSE_STEPS`] steps (bounded work). Pressure is clamped to
+/// `[0, Pmax]` (NaN → 0); the scale to `[0, MAX_OFFSET_SCALE]` (NaN → 0).
+pub fn branch_contraction(
+    model: &LoadModel,
+    pressure_mpa: f32,
+    branch: Branch,
+    offset_scale: f32,
+) -> f32 {
+    if offset_scale == 1.0 {
+        return model.contraction(pressure_mpa, branch);
+    }
+    let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
+    let (mut lo, mut hi) = (model.root_contraction(), model.max_contraction());
+    for _ in 0..SCALED_INVERSE_STEPS {
+        let mid = 0.5 * (lo + hi);
+        let g = model.constraint_pressure_mpa(mid) + k * model.offset_mpa(mid);
+        if g <= p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    clamp(
+        0.5 * (lo + hi),
+        model.root_contraction(),
+        model.max_contraction(),
+    )
+}
+
+/// Which effects a [`Simulator`] runs, with their parameters (`None`: off).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Effects {
+    /// Minor loops with wiping-out.
+    pub memory: Option<NonLocalMemory>,
+    /// Ellipse height growing with the pressure rate.
+    pub rate: Option<RateDependence>,
+    /// Slow relaxation after pressure steps.
+    pub creep: Option<Creep>,
+    /// Ellipse height linear in load.
+    pub width: Option<LoadDependentWidth>,
+}
+
+impl Effects {
+    /// The paper's model alone.
+    pub const NONE: Effects = Effects {
+        memory: None,
+        rate: None,
+        creep: None,
+        width: None,
+    };
+
+    /// Validate every effect that is on.
+    pub fn validate(&self) -> Result<(), Error> {
+        if let Some(m) = &self.memory {
+            m.validate()?;
+        }
+        if let Some(r) = &self.rate {
+            r.validate()?;
+        }
+        if let Some(c) = &self.creep {
+            c.validate()?;
+        }
+        if let Some(w) = &self.width {
+            w.validate()?;
+        }
+        Ok(())
+    }
+}
+
+/// The paper's model plus [`Effects`], predicting contraction from measured
+/// pressure and load one sample at a time.
+///
+/// The branch and the active load come from a [`Tracker`] fed the pressure
+/// (the paper's mode switching); the static contraction is the branch inverse
+/// (with the memory's minor loop and the scaled offset when those are on);
+/// creep filters it. With [`Effects::NONE`] this is exactly the paper's model
+/// driven by pressure: `model.contraction(p, branch)`.
+///
+/// `N` is the capacity of the reversal memory (unused without it). The
+/// memory is cleared when the tracker switches the load model.
+#[derive(Clone, Debug)]
+pub struct Simulator<const N: usize> {
+    coeffs: Coeffs,
+    effects: Effects,
+    tracker: Tracker,
+    stack: ReversalStack<N>,
+    rate: RateState,
+    creep: CreepState,
+    last_t_s: Option<f32>,
+    last_pressure_mpa: f32,
+    /// Pressure and static contraction at the extreme of the current sweep.
+    extreme: Option<Reversal>,
+    last_output: f32,
+}
+
+impl<const N: usize> Simulator<N> {
+    /// A simulator starting on the contraction branch at `initial_load_n`.
+    pub fn new(
+        coeffs: Coeffs,
+        effects: Effects,
+        config: TrackerConfig,
+        initial_load_n: f32,
+    ) -> Result<Self, Error> {
+        effects.validate()?;
+        let tracker = Tracker::new(&coeffs, config, initial_load_n, Branch::Contraction)?;
+        let last_output = tracker.model().root_contraction();
+        Ok(Simulator {
+            coeffs,
+            effects,
+            tracker,
+            stack: ReversalStack::default(),
+            rate: RateState::default(),
+            creep: CreepState::default(),
+            last_t_s: None,
+            last_pressure_mpa: 0.0,
+            extreme: None,
+            last_output,
+        })
+    }
+
+    /// The effects this runs.
+    pub fn effects(&self) -> &Effects {
+        &self.effects
+    }
+
+    /// The tracker (branch and active load).
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    /// The reversal memory.
+    pub fn reversals(&self) -> &[Reversal] {
+        self.stack.points()
+    }
+
+    /// Factor on the ellipse offset from the width and rate effects now.
+    pub fn offset_scale(&self) -> f32 {
+        let mut m = 1.0;
+        if let Some(w) = &self.effects.width {
+            m *= w.scale(self.coeffs.params(), self.tracker.load_n());
+        }
+        if let Some(r) = &self.effects.rate {
+            m *= r.scale(&self.rate);
+        }
+        clamp(m, 0.0, MAX_OFFSET_SCALE)
+    }
+
+    /// Feed one sample; returns the predicted contraction (fraction of rest
+    /// length), finite and within the active model's stroke.
+    ///
+    /// A non-finite pressure holds the last finite one; a non-finite load is
+    /// ignored by the tracker; a non-finite, backwards or longer than
+    /// [`MAX_STEP_S`] time step holds the rate filter and the creep lag.
+    pub fn step(&mut self, t_s: f32, pressure_mpa: f32, load_n: f32) -> f32 {
+        let p = if pressure_mpa.is_finite() {
+            pressure_mpa
+        } else {
+            self.last_pressure_mpa
+        };
+        self.last_pressure_mpa = p;
+        let dt_s = match (self.last_t_s, t_s.is_finite()) {
+            (Some(last), true) => t_s - last,
+            _ => f32::NAN,
+        };
+        if t_s.is_finite() {
+            self.last_t_s = Some(t_s);
+        }
+        let dt_ok = dt_s > 0.0 && dt_s <= MAX_STEP_S;
+
+        let update = self.tracker.update(&self.coeffs, p, load_n);
+        if update.load_switch.is_some() {
+            // The turning points belong to the old load's loop.
+            self.stack.clear();
+        }
+        if self.effects.rate.is_some() {
+            self.rate.update(p, if dt_ok { dt_s } else { f32::NAN });
+        }
+        let scale = self.offset_scale();
+        let branch = self.tracker.branch();
+        let model = self.tracker.model();
+
+        let x_static = match &self.effects.memory {
+            Some(mem) => {
+                if update.branch_switch.is_some() {
+                    if let Some(r) = self.extreme {
+                        self.stack.push(r);
+                    }
+                    self.extreme = None;
+                }
+                self.stack.contraction(mem, model, p, branch, scale)
+            }
+            None => branch_contraction(model, p, branch, scale),
+        };
+        // Follow the sweep's extreme (the turning point of the next reversal).
+        let beyond = match (self.extreme, branch) {
+            (None, _) => true,
+            (Some(e), Branch::Contraction) => p >= e.pressure_mpa,
+            (Some(e), Branch::Expansion) => p <= e.pressure_mpa,
+        };
+        if beyond || update.branch_switch.is_some() {
+            self.extreme = Some(Reversal {
+                pressure_mpa: p,
+                contraction: x_static,
+            });
+        }
+
+        let x = match &self.effects.creep {
+            Some(c) => c.step(
+                &mut self.creep,
+                x_static,
+                if dt_ok { dt_s } else { f32::NAN },
+            ),
+            None => x_static,
+        };
+        let x = clamp(x, model.root_contraction(), model.max_contraction());
+        self.last_output = x;
+        x
+    }
+
+    /// The last predicted contraction.
+    pub fn last_contraction(&self) -> f32 {
+        self.last_output
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::Params;
+
+    fn coeffs() -> Coeffs {
+        Coeffs::new(Params::DEFAULT).unwrap()
+    }
+
+    fn run<const N: usize>(effects: Effects, samples: &[(f32, f32, f32)]) -> std::vec::Vec<f32> {
+        let mut sim =
+            Simulator::<N>::new(coeffs(), effects, TrackerConfig::DEFAULT_PRESSURE, 100.0).unwrap();
+        samples.iter().map(|&(t, p, l)| sim.step(t, p, l)).collect()
+    }
+
+    /// 0 → 0.3 → 0.1 → 0.4 → 0 MPa at 0.05 MPa/s, 50 Hz, 100 N.
+    fn partial_cycle() -> std::vec::Vec<(f32, f32, f32)> {
+        let mut out = std::vec::Vec::new();
+        let mut p = 0.0f32;
+        let mut t = 0.0f32;
+        for target in [0.3f32, 0.1, 0.4, 0.0] {
+            while (target - p).abs() > 1e-6 {
+                let step = (target - p).clamp(-0.001, 0.001);
+                p += step;
+                t += 0.02;
+                out.push((t, p, 100.0));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn no_effects_is_the_paper_model() {
+        let samples = partial_cycle();
+        let xs = run::<8>(Effects::NONE, &samples);
+        let c = coeffs();
+        let mut tracker = Tracker::new(
+            &c,
+            TrackerConfig::DEFAULT_PRESSURE,
+            100.0,
+            Branch::Contraction,
+        )
+        .unwrap();
+        for (&(_, p, l), x) in samples.iter().zip(xs) {
+            tracker.update(&c, p, l);
+            assert_eq!(x, tracker.model().contraction(p, tracker.branch()));
+        }
+    }
+
+    #[test]
+    fn memory_removes_the_jump_at_an_inner_reversal() {
+        let samples = partial_cycle();
+        let base = run::<8>(Effects::NONE, &samples);
+        let mem = run::<8>(
+            Effects {
+                memory: Some(NonLocalMemory { shape: 1.0 }),
+                ..Effects::NONE
+            },
+            &samples,
+        );
+        let max_jump = |xs: &[f32]| {
+            xs.windows(2)
+                .map(|w| (w[1] - w[0]).abs())
+                .fold(0.0f32, f32::max)
+        };
+        assert!(max_jump(&base) > 0.02, "the paper's model jumps");
+        assert!(max_jump(&mem) < 0.01, "memory: {}", max_jump(&mem));
+    }
+
+    #[test]
+    fn width_scale_one_matches_and_larger_scale_widens() {
+        let m = coeffs().load_model(200.0).unwrap();
+        for p in [0.1f32, 0.25, 0.4] {
+            let table = m.contraction(p, Branch::Contraction);
+            let bis = branch_contraction(&m, p, Branch::Contraction, 1.0 + 1e-7);
+            assert!((table - bis).abs() < 2e-3, "{p}: {table} vs {bis}");
+            let gap = |s| {
+                branch_contraction(&m, p, Branch::Expansion, s)
+                    - branch_contraction(&m, p, Branch::Contraction, s)
+            };
+            assert!(gap(2.0) > gap(1.0 + 1e-7) && gap(1.0 + 1e-7) > gap(0.5));
+            assert!(gap(0.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn creep_lags_a_step() {
+        let mut samples = std::vec::Vec::new();
+        for k in 0..1000 {
+            let p = if k < 100 { 0.1 } else { 0.3 };
+            samples.push((k as f32 * 0.02, p, 100.0));
+        }
+        let base = run::<4>(Effects::NONE, &samples);
+        let crept = run::<4>(
+            Effects {
+                creep: Some(Creep {
+                    gain: 0.3,
+                    time_constant_s: 2.0,
+                }),
+                ..Effects::NONE
+            },
+            &samples,
+        );
+        assert!(base[101] - crept[101] > 0.2 * (base[101] - base[99]));
+        assert!((base[999] - crept[999]).abs() < 1e-3);
+    }
+
+    #[test]
+    fn invalid_effects_are_refused() {
+        let bad = Effects {
+            creep: Some(Creep {
+                gain: 2.0,
+                time_constant_s: 1.0,
+            }),
+            ..Effects::NONE
+        };
+        assert!(
+            Simulator::<4>::new(coeffs(), bad, TrackerConfig::DEFAULT_PRESSURE, 100.0).is_err()
+        );
+    }
+}
