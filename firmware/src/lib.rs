@@ -1,2 +1,55 @@
-//! Work in progress: see the open issues.
-#![no_std]
+//! # firmware
+//!
+//! Position control of a pneumatic artificial muscle with pam-core's
+//! hysteresis model as feedforward, as a `no_std` library generic over
+//! embedded-hal-style traits (so the host simulator runs the very same
+//! code), plus the Cortex-M4F image (`src/main.rs`, features `chip` and
+//! `qemu`).
+//!
+//! * [`hal`]: sensor and valve traits, the proportional valve and the
+//!   inlet/exhaust pair drivers over `embedded_hal::pwm::SetDutyCycle`.
+//! * [`controller`]: [`Controller`], the feedforward + PI + inner pressure
+//!   loop, and the safety monitor ([`Fault`]).
+//! * [`plant`]: a `no_std` simulated muscle and simulated sensors/PWM.
+//! * [`scenario`]: the triangle-trajectory run-pass test the QEMU image runs.
+//!
+//! ```
+//! use firmware::controller::{Controller, ControllerConfig, Io, ValveCommand};
+//! use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
+//! use firmware::plant::{SimBus, SimContraction, SimLoad, SimPressure, SimPwm};
+//!
+//! let blob = pam_core::blob::encode(&pam_core::Params::DEFAULT);
+//! let mut ctl = Controller::from_blob(&blob, ControllerConfig::DEFAULT, 200.0).unwrap();
+//! let bus = SimBus::new();
+//! let cal = PressureCalibration::ADC12_0_1MPA;
+//! let mut io = Io {
+//!     pressure: SimPressure { bus: &bus, calibration: cal },
+//!     contraction: SimContraction(&bus),
+//!     load: SimLoad(&bus),
+//!     valve: ValvePair::new(SimPwm(&bus.inlet_duty), SimPwm(&bus.exhaust_duty), ValvePairConfig::DEFAULT).unwrap(),
+//! };
+//! // Muscle at rest, asked to contract by 10 %: the inlet opens.
+//! bus.pressure_counts.set(cal.to_counts(0.0));
+//! bus.contraction.set(0.02);
+//! bus.load_n.set(200.0);
+//! let step = ctl.step(&mut io, 0.10);
+//! assert_eq!(step.fault, None);
+//! assert!(matches!(step.command, ValveCommand::Flow(f) if f > 0.0));
+//! assert!(bus.inlet_duty.get() > 0 && bus.exhaust_duty.get() == 0);
+//! // A NaN from the position sensor: exhaust in the same step.
+//! bus.contraction.set(f32::NAN);
+//! let step = ctl.step(&mut io, 0.10);
+//! assert!(step.new_fault.is_some());
+//! assert_eq!((bus.inlet_duty.get(), bus.exhaust_duty.get()), (0, SimPwm::MAX_DUTY));
+//! ```
+#![cfg_attr(not(test), no_std)]
+#![warn(missing_docs)]
+// `!(x > 0.0)` is deliberate in validation: it is also true for NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod controller;
+pub mod hal;
+pub mod plant;
+pub mod scenario;
+
+pub use controller::{Controller, ControllerConfig, Fault, Io, SafetyConfig, Step};

@@ -1,0 +1,946 @@
+//! The position loop: hysteresis model as feedforward, PI on contraction,
+//! an inner pressure loop to a valve flow command, and the safety monitor.
+//!
+//! One [`Controller::step`] per control period (`dt_s`):
+//!
+//! 1. read the pressure, contraction and load sensors ([`Sample::read`]);
+//! 2. check every reading: a read error, a non-finite value, a value outside
+//!    its plausible range, a reading frozen for more than `stuck_samples`
+//!    samples, a load outside the calibrated range of the coefficients, or a
+//!    non-finite set-point is a [`Fault`];
+//! 3. feed pam-core's [`Tracker`] with the *desired* contraction as drive
+//!    signal (noise-free, so the branch switches as the set-point reverses
+//!    instead of a deadband later on a noisy measurement) and the measured
+//!    load (which picks the model of the load family, eqs. 16–21);
+//! 4. feedforward: the pressure that holds the desired contraction on the
+//!    active branch, `HMC` or `HME` of eqs. (25)/(26);
+//! 5. PI on the contraction error, added to the feedforward, clamped to the
+//!    model's pressure range;
+//! 6. inner loop: proportional on the pressure error, to a flow command in
+//!    `[-1, 1]` for the [`Valve`]. Proportional alone suffices there: the
+//!    chamber integrates flow, so a constant pressure needs zero flow and
+//!    the pressure loop has no steady-state error without leaks; leaks are
+//!    taken up by the outer integrator.
+//!
+//! On a fault the valve goes to the configured [`SafeState`] in the same
+//! step (so within one control period of the bad reading), the integrator is
+//! cleared, and control resumes only after `recovery_samples` consecutive
+//! good samples.
+//!
+//! # Clamps
+//! * The desired contraction is clamped to the active model's stroke
+//!   `[R_i, Rx_i]`: outside it no pressure holds it, and the integrator
+//!   would wind up chasing it.
+//! * The pressure command is clamped to `[0, Pmax]` of the model: the muscle
+//!   cannot hold negative gauge pressure and the model is not calibrated
+//!   above `Pmax`.
+//! * The integral term is clamped to `±integral_limit_mpa`, and it is not
+//!   advanced while the pressure command is saturated in the direction the
+//!   error pushes it (conditional integration): together they bound windup
+//!   when the valve or the supply cannot follow.
+//! * The valve command is clamped to `[-1, 1]`.
+//!
+//! # Work per step
+//! Three sensor reads, a fixed number of comparisons, one forward model
+//! evaluation (one square root) and, on a load switch of the tracker, one
+//! [`pam_core::LoadModel`] rebuild. No allocation, no loops over data, no
+//! panicking operation (no indexing by runtime values, no division by a
+//! runtime value other than in `f32`, which saturates to ±inf or NaN and is
+//! clamped).
+
+use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, SensorErrorKind, Valve};
+use pam_core::{Branch, Coeffs, Tracker, TrackerConfig, Update};
+
+/// The hardware a [`Controller`] drives: three sensors and a valve.
+///
+/// Fields are public so a simulation can reach its mocks between steps.
+#[derive(Debug)]
+pub struct Io<P, X, L, V> {
+    /// Chamber pressure.
+    pub pressure: P,
+    /// Muscle contraction.
+    pub contraction: X,
+    /// Load on the muscle.
+    pub load: L,
+    /// The valve (or valve pair).
+    pub valve: V,
+}
+
+/// Which sensor a [`Fault`] concerns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SensorId {
+    /// The pressure transducer.
+    Pressure,
+    /// The contraction (position) sensor.
+    Contraction,
+    /// The load cell.
+    Load,
+}
+
+/// Why the controller put the valves in the safe state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Fault {
+    /// A sensor read failed.
+    Read {
+        /// Which sensor.
+        sensor: SensorId,
+        /// How it failed.
+        kind: SensorErrorKind,
+    },
+    /// A sensor returned NaN or an infinity.
+    NonFinite(SensorId),
+    /// A reading is outside its plausible range ([`SafetyConfig`]); for the
+    /// load, outside the calibrated range of the coefficients.
+    OutOfRange(SensorId),
+    /// A reading was bit-for-bit identical for more than `stuck_samples`
+    /// samples: a frozen converter or a disconnected line held by a filter.
+    Stuck(SensorId),
+    /// The desired contraction is not finite.
+    Setpoint,
+    /// The valve driver refused a duty.
+    Valve,
+}
+
+impl core::fmt::Display for SensorId {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            SensorId::Pressure => "pressure",
+            SensorId::Contraction => "contraction",
+            SensorId::Load => "load",
+        })
+    }
+}
+
+impl core::fmt::Display for Fault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Fault::Read { sensor, kind } => write!(f, "{sensor} sensor read failed: {kind}"),
+            Fault::NonFinite(s) => write!(f, "{s} reading not finite"),
+            Fault::OutOfRange(s) => write!(f, "{s} reading out of range"),
+            Fault::Stuck(s) => write!(f, "{s} reading stuck"),
+            Fault::Setpoint => f.write_str("set-point not finite"),
+            Fault::Valve => f.write_str("valve driver refused a duty"),
+        }
+    }
+}
+
+/// Limits of the safety monitor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SafetyConfig {
+    /// What the valves do during a fault.
+    pub safe_state: SafeState,
+    /// Lowest plausible pressure reading, MPa gauge.
+    pub pressure_min_mpa: f32,
+    /// Highest plausible pressure reading, MPa gauge.
+    pub pressure_max_mpa: f32,
+    /// Lowest plausible contraction reading (fraction of rest length).
+    pub contraction_min: f32,
+    /// Highest plausible contraction reading.
+    pub contraction_max: f32,
+    /// A reading identical to the bit for more than this many consecutive
+    /// samples is stuck; 0 disables the check. Real converters dither by at
+    /// least one count; a simulated sensor must add noise too.
+    pub stuck_samples: u16,
+    /// Consecutive good samples before leaving the safe state (≥ 1).
+    pub recovery_samples: u16,
+}
+
+/// Which feedforward the outer loop adds to its PI term.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Feedforward {
+    /// The hysteresis model on the active branch, eqs. (25)/(26): the design.
+    Hysteresis,
+    /// The constraint model alone, eq. (21): no hysteresis compensation
+    /// (for comparison).
+    Constraint,
+    /// None: PI feedback only (for comparison).
+    Off,
+}
+
+/// Gains, rate and limits of the controller.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControllerConfig {
+    /// Control period, s.
+    pub dt_s: f32,
+    /// Outer loop proportional gain, MPa per unit contraction error.
+    pub kp_mpa: f32,
+    /// Outer loop integral gain, MPa per (unit contraction error · s).
+    pub ki_mpa_per_s: f32,
+    /// Bound on the integral term, MPa.
+    pub integral_limit_mpa: f32,
+    /// Inner loop gain: valve flow command per MPa of pressure error.
+    pub pressure_gain_per_mpa: f32,
+    /// Feedforward model.
+    pub feedforward: Feedforward,
+    /// Mode tracker; its drive signal is the desired contraction, so the
+    /// direction deadband is in contraction units.
+    pub tracker: TrackerConfig,
+    /// Safety monitor.
+    pub safety: SafetyConfig,
+}
+
+impl ControllerConfig {
+    /// 1 kHz, tuned on the simulated muscle of [`crate::plant`] (a 100–600 N
+    /// McKibben muscle with on/off valves on a 0.6 MPa supply).
+    pub const DEFAULT: ControllerConfig = ControllerConfig {
+        dt_s: 1e-3,
+        kp_mpa: 2.0,
+        ki_mpa_per_s: 20.0,
+        integral_limit_mpa: 0.1,
+        pressure_gain_per_mpa: 20.0,
+        feedforward: Feedforward::Hysteresis,
+        tracker: TrackerConfig {
+            direction_deadband: 0.002,
+            load_threshold_n: 20.0,
+            load_debounce_samples: 5,
+        },
+        safety: SafetyConfig {
+            safe_state: SafeState::Exhaust,
+            pressure_min_mpa: -0.05,
+            pressure_max_mpa: 0.8,
+            contraction_min: -0.05,
+            contraction_max: 0.4,
+            stuck_samples: 200,
+            recovery_samples: 50,
+        },
+    };
+
+    /// Check every field; the first bad one is named.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        let non_negative = |v: f32| v.is_finite() && v >= 0.0;
+        if !positive(self.dt_s) {
+            return Err(ConfigError::Invalid("dt_s", "must be finite and > 0 s"));
+        }
+        if !non_negative(self.kp_mpa) {
+            return Err(ConfigError::Invalid("kp_mpa", "must be finite and >= 0"));
+        }
+        if !non_negative(self.ki_mpa_per_s) {
+            return Err(ConfigError::Invalid(
+                "ki_mpa_per_s",
+                "must be finite and >= 0",
+            ));
+        }
+        if !non_negative(self.integral_limit_mpa) {
+            return Err(ConfigError::Invalid(
+                "integral_limit_mpa",
+                "must be finite and >= 0",
+            ));
+        }
+        if !non_negative(self.pressure_gain_per_mpa) {
+            return Err(ConfigError::Invalid(
+                "pressure_gain_per_mpa",
+                "must be finite and >= 0",
+            ));
+        }
+        let s = &self.safety;
+        let ordered = |lo: f32, hi: f32| lo.is_finite() && hi.is_finite() && lo < hi;
+        if !ordered(s.pressure_min_mpa, s.pressure_max_mpa) {
+            return Err(ConfigError::Invalid(
+                "pressure_min_mpa",
+                "need finite pressure_min_mpa < pressure_max_mpa",
+            ));
+        }
+        if !ordered(s.contraction_min, s.contraction_max) {
+            return Err(ConfigError::Invalid(
+                "contraction_min",
+                "need finite contraction_min < contraction_max",
+            ));
+        }
+        if s.recovery_samples == 0 {
+            return Err(ConfigError::Invalid("recovery_samples", "must be >= 1"));
+        }
+        self.tracker.validate().map_err(ConfigError::Tracker)
+    }
+}
+
+/// Why a controller could not be built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The coefficient blob or parameter set was refused by pam-core.
+    Coefficients(pam_core::Error),
+    /// The tracker configuration was refused by pam-core.
+    Tracker(pam_core::Error),
+    /// A controller setting is invalid: the field and what it must be.
+    Invalid(&'static str, &'static str),
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::Coefficients(e) => write!(f, "coefficients refused: {e}"),
+            ConfigError::Tracker(e) => write!(f, "tracker configuration refused: {e}"),
+            ConfigError::Invalid(field, want) => write!(f, "`{field}` {want}"),
+        }
+    }
+}
+
+impl core::error::Error for ConfigError {}
+
+/// One sample of the three sensors, errors reduced to their kinds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Sample {
+    /// Chamber pressure, MPa gauge.
+    pub pressure_mpa: Result<f32, SensorErrorKind>,
+    /// Contraction, fraction of rest length.
+    pub contraction: Result<f32, SensorErrorKind>,
+    /// Load, N.
+    pub load_n: Result<f32, SensorErrorKind>,
+}
+
+impl Sample {
+    /// Read each sensor once.
+    pub fn read<P, X, L>(pressure: &mut P, contraction: &mut X, load: &mut L) -> Sample
+    where
+        P: PressureSensor,
+        X: ContractionSensor,
+        L: LoadCell,
+    {
+        use crate::hal::SensorError;
+        Sample {
+            pressure_mpa: pressure.read_pressure_mpa(),
+            contraction: contraction.read_contraction().map_err(|e| e.kind()),
+            load_n: load.read_load_n().map_err(|e| e.kind()),
+        }
+    }
+}
+
+/// What the valve is told to do.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ValveCommand {
+    /// Flow command in `[-1, 1]` ([`Valve::set_flow`]).
+    Flow(f32),
+    /// The safe state ([`Valve::set_safe`]).
+    Safe(SafeState),
+}
+
+/// What one step did; the firmware logs `new_fault` and `recovered`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Step {
+    /// The active fault (valves safe), if any.
+    pub fault: Option<Fault>,
+    /// A fault that began (or changed) on this step.
+    pub new_fault: Option<Fault>,
+    /// The controller left the safe state on this step.
+    pub recovered: bool,
+    /// Branch of the active model.
+    pub branch: Branch,
+    /// Feedforward pressure from the hysteresis model, MPa (0 in a fault).
+    pub feedforward_mpa: f32,
+    /// Pressure set-point of the inner loop, MPa (0 in a fault).
+    pub pressure_cmd_mpa: f32,
+    /// What the valve was told.
+    pub command: ValveCommand,
+    /// What the mode tracker did.
+    pub tracker: Update,
+}
+
+/// Consecutive identical readings of one sensor.
+#[derive(Clone, Copy, Debug, Default)]
+struct StuckMonitor {
+    last_bits: Option<u32>,
+    repeats: u16,
+}
+
+impl StuckMonitor {
+    /// Record `v`; true when it has repeated more than `limit` times (never when `limit` is 0).
+    fn observe(&mut self, v: f32, limit: u16) -> bool {
+        let bits = v.to_bits();
+        if self.last_bits == Some(bits) {
+            self.repeats = self.repeats.saturating_add(1);
+        } else {
+            self.last_bits = Some(bits);
+            self.repeats = 0;
+        }
+        limit != 0 && self.repeats > limit
+    }
+}
+
+/// The position controller. Holds the coefficients, the mode tracker and the
+/// loop state; about 500 bytes, no references.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    coeffs: Coeffs,
+    config: ControllerConfig,
+    tracker: Tracker,
+    integral_mpa: f32,
+    fault: Option<Fault>,
+    good_run: u16,
+    stuck: [StuckMonitor; 3],
+}
+
+/// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
+/// with bad bounds).
+fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
+    if x >= lo {
+        if x <= hi {
+            x
+        } else {
+            hi
+        }
+    } else {
+        lo
+    }
+}
+
+fn check_reading(
+    sensor: SensorId,
+    reading: Result<f32, SensorErrorKind>,
+    lo: f32,
+    hi: f32,
+    stuck: &mut StuckMonitor,
+    stuck_samples: u16,
+) -> Option<Fault> {
+    let v = match reading {
+        Ok(v) => v,
+        Err(kind) => return Some(Fault::Read { sensor, kind }),
+    };
+    if !v.is_finite() {
+        return Some(Fault::NonFinite(sensor));
+    }
+    if stuck.observe(v, stuck_samples) {
+        return Some(Fault::Stuck(sensor));
+    }
+    if !(v >= lo && v <= hi) {
+        return Some(Fault::OutOfRange(sensor));
+    }
+    None
+}
+
+impl Controller {
+    /// A controller for validated coefficients, starting on the contraction
+    /// branch with the model at `initial_load_n` (clamped to the calibrated
+    /// range).
+    pub fn new(
+        coeffs: Coeffs,
+        config: ControllerConfig,
+        initial_load_n: f32,
+    ) -> Result<Controller, ConfigError> {
+        config.validate()?;
+        let tracker = Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
+            .map_err(ConfigError::Tracker)?;
+        Ok(Controller {
+            coeffs,
+            config,
+            tracker,
+            integral_mpa: 0.0,
+            fault: None,
+            good_run: 0,
+            stuck: [StuckMonitor::default(); 3],
+        })
+    }
+
+    /// A controller from a coefficient blob in pam-core's format
+    /// ([`pam_core::blob`]: magic, version, length, CRC-32, then the
+    /// parameters are validated). A blob that fails any check is refused.
+    pub fn from_blob(
+        blob: &[u8],
+        config: ControllerConfig,
+        initial_load_n: f32,
+    ) -> Result<Controller, ConfigError> {
+        let coeffs = pam_core::blob::decode(blob).map_err(ConfigError::Coefficients)?;
+        Controller::new(coeffs, config, initial_load_n)
+    }
+
+    /// The coefficients.
+    pub fn coeffs(&self) -> &Coeffs {
+        &self.coeffs
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// The mode tracker (active branch and load model).
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    /// The active fault; `None` while controlling.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// The outer loop's integral term, MPa.
+    pub fn integral_mpa(&self) -> f32 {
+        self.integral_mpa
+    }
+
+    /// One control period: read the sensors, compute, drive the valve.
+    ///
+    /// If the valve refuses the write, the fault is [`Fault::Valve`] and the
+    /// safe state is written once more (best effort).
+    pub fn step<P, X, L, V>(&mut self, io: &mut Io<P, X, L, V>, desired_contraction: f32) -> Step
+    where
+        P: PressureSensor,
+        X: ContractionSensor,
+        L: LoadCell,
+        V: Valve,
+    {
+        let sample = Sample::read(&mut io.pressure, &mut io.contraction, &mut io.load);
+        let mut step = self.update(&sample, desired_contraction);
+        let written = match step.command {
+            ValveCommand::Flow(c) => io.valve.set_flow(c),
+            ValveCommand::Safe(s) => io.valve.set_safe(s),
+        };
+        if written.is_err() {
+            let safe = self.config.safety.safe_state;
+            self.enter_fault(Fault::Valve, &mut step);
+            step.recovered = false;
+            step.command = ValveCommand::Safe(safe);
+            // The driver just refused a write; retry the safe state once and
+            // stay faulted whatever it returns (the next step retries again).
+            let _ = io.valve.set_safe(safe);
+        }
+        step
+    }
+
+    /// The computation of one step on a given sample, without I/O: returns
+    /// the valve command to apply. [`step`](Self::step) is `Sample::read`,
+    /// this, and the valve write.
+    pub fn update(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
+        let load_n = sample.load_n.unwrap_or(f32::NAN);
+        let tracker = self
+            .tracker
+            .update(&self.coeffs, desired_contraction, load_n);
+        let safe = ValveCommand::Safe(self.config.safety.safe_state);
+        let mut step = Step {
+            fault: None,
+            new_fault: None,
+            recovered: false,
+            branch: self.tracker.branch(),
+            feedforward_mpa: 0.0,
+            pressure_cmd_mpa: 0.0,
+            command: safe,
+            tracker,
+        };
+
+        if let Some(f) = self.check(sample, desired_contraction) {
+            self.enter_fault(f, &mut step);
+            return step;
+        }
+        if let Some(f) = self.fault {
+            self.good_run = self.good_run.saturating_add(1);
+            if self.good_run < self.config.safety.recovery_samples {
+                step.fault = Some(f);
+                return step;
+            }
+            self.fault = None;
+            self.good_run = 0;
+            step.recovered = true;
+        }
+
+        // `check` passed, so these are finite and in range.
+        let (pressure_mpa, contraction) = match (sample.pressure_mpa, sample.contraction) {
+            (Ok(p), Ok(x)) => (p, x),
+            _ => return step,
+        };
+        let cfg = &self.config;
+        let model = self.tracker.model();
+        let branch = self.tracker.branch();
+        // Clamp: the set-point to the active model's stroke [R_i, Rx_i].
+        let x_ref = clamp(
+            desired_contraction,
+            model.root_contraction(),
+            model.max_contraction(),
+        );
+        let feedforward_mpa = match cfg.feedforward {
+            // eqs. (25)/(26): the pressure that holds x_ref on the active branch.
+            Feedforward::Hysteresis => model.pressure_mpa(x_ref, branch),
+            // eq. (21): the constraint model, between the two branches.
+            Feedforward::Constraint => model.constraint_pressure_mpa(x_ref),
+            Feedforward::Off => 0.0,
+        };
+        let error = x_ref - contraction;
+        let max_mpa = model.max_pressure_mpa();
+        let unclamped_mpa = feedforward_mpa + cfg.kp_mpa * error + self.integral_mpa;
+        // Clamp: the pressure command to the model's range [0, Pmax].
+        let pressure_cmd_mpa = clamp(unclamped_mpa, 0.0, max_mpa);
+        // Anti-windup, conditional integration: hold the integrator while the
+        // command is saturated and the error would push it further out.
+        let windup =
+            (unclamped_mpa > max_mpa && error > 0.0) || (unclamped_mpa < 0.0 && error < 0.0);
+        if !windup {
+            // Clamp: the integral term to ±integral_limit_mpa.
+            self.integral_mpa = clamp(
+                self.integral_mpa + cfg.ki_mpa_per_s * error * cfg.dt_s,
+                -cfg.integral_limit_mpa,
+                cfg.integral_limit_mpa,
+            );
+        }
+        // Inner loop; clamp: the flow command to [-1, 1].
+        let flow = clamp(
+            cfg.pressure_gain_per_mpa * (pressure_cmd_mpa - pressure_mpa),
+            -1.0,
+            1.0,
+        );
+        step.feedforward_mpa = feedforward_mpa;
+        step.pressure_cmd_mpa = pressure_cmd_mpa;
+        step.command = ValveCommand::Flow(flow);
+        step
+    }
+
+    fn enter_fault(&mut self, fault: Fault, step: &mut Step) {
+        if self.fault != Some(fault) {
+            step.new_fault = Some(fault);
+        }
+        self.fault = Some(fault);
+        self.good_run = 0;
+        // Bumpless restart: the integral built up before the fault does not
+        // apply to the state the muscle is in after it.
+        self.integral_mpa = 0.0;
+        step.fault = Some(fault);
+        step.feedforward_mpa = 0.0;
+        step.pressure_cmd_mpa = 0.0;
+        step.command = ValveCommand::Safe(self.config.safety.safe_state);
+    }
+
+    /// The first fault in this sample, in the order pressure, contraction,
+    /// load, set-point. Every sensor is checked every step so that each stuck
+    /// counter sees every sample.
+    fn check(&mut self, sample: &Sample, desired_contraction: f32) -> Option<Fault> {
+        let s = &self.config.safety;
+        let p = self.coeffs.params();
+        let [sp, sx, sl] = &mut self.stuck;
+        let pressure = check_reading(
+            SensorId::Pressure,
+            sample.pressure_mpa,
+            s.pressure_min_mpa,
+            s.pressure_max_mpa,
+            sp,
+            s.stuck_samples,
+        );
+        let contraction = check_reading(
+            SensorId::Contraction,
+            sample.contraction,
+            s.contraction_min,
+            s.contraction_max,
+            sx,
+            s.stuck_samples,
+        );
+        // The load's plausible range is the calibrated range of the model family.
+        let load = check_reading(
+            SensorId::Load,
+            sample.load_n,
+            p.min_load_n,
+            p.max_load_n,
+            sl,
+            s.stuck_samples,
+        );
+        let setpoint = (!desired_contraction.is_finite()).then_some(Fault::Setpoint);
+        pressure.or(contraction).or(load).or(setpoint)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pam_core::Params;
+
+    fn controller() -> Controller {
+        controller_with(ControllerConfig::DEFAULT)
+    }
+
+    fn controller_with(config: ControllerConfig) -> Controller {
+        Controller::new(Coeffs::new(Params::DEFAULT).unwrap(), config, 200.0).unwrap()
+    }
+
+    /// Constant readings for many samples, without tripping the stuck check.
+    fn no_stuck_check() -> Controller {
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.stuck_samples = 0;
+        controller_with(cfg)
+    }
+
+    fn good(pressure_mpa: f32, contraction: f32, load_n: f32) -> Sample {
+        Sample {
+            pressure_mpa: Ok(pressure_mpa),
+            contraction: Ok(contraction),
+            load_n: Ok(load_n),
+        }
+    }
+
+    #[test]
+    fn at_the_set_point_the_command_is_the_branch_feedforward() {
+        let mut c = controller();
+        let model = c.tracker().model().clone();
+        let x = 0.12;
+        let ff = model.pressure_mpa(x, Branch::Contraction);
+        let s = c.update(&good(ff, x, 200.0), x);
+        assert_eq!(s.fault, None);
+        assert_eq!(s.branch, Branch::Contraction);
+        assert!((s.feedforward_mpa - ff).abs() < 1e-6);
+        assert!((s.pressure_cmd_mpa - ff).abs() < 1e-6);
+        assert_eq!(s.command, ValveCommand::Flow(0.0));
+    }
+
+    #[test]
+    fn feedforward_follows_the_branch_of_the_set_point() {
+        let mut c = no_stuck_check();
+        let x = 0.12;
+        let mut last = c.update(&good(0.2, x, 200.0), x);
+        // Rise to 0.15, then fall back to 0.12: the branch turns to expansion
+        // and the feedforward at 0.12 drops by twice the ellipse offset.
+        let mut sp = x;
+        while sp < 0.15 {
+            sp += 1e-4;
+            last = c.update(&good(0.2 + sp * 1e-3, sp, 200.0), sp);
+        }
+        assert_eq!(last.branch, Branch::Contraction);
+        let up = c.tracker().model().pressure_mpa(x, Branch::Contraction);
+        while sp > x {
+            sp -= 1e-4;
+            last = c.update(&good(0.2 - sp * 1e-3, sp, 200.0), sp);
+        }
+        assert_eq!(last.branch, Branch::Expansion);
+        let m = c.tracker().model();
+        let expected = up - 2.0 * m.offset_mpa(sp);
+        assert!(
+            (last.feedforward_mpa - m.pressure_mpa(sp, Branch::Expansion)).abs() < 1e-6
+                && (last.feedforward_mpa - expected).abs() < 1e-3,
+            "{} vs {expected}",
+            last.feedforward_mpa
+        );
+    }
+
+    #[test]
+    fn pi_pushes_toward_the_set_point_and_the_inner_loop_toward_the_pressure() {
+        let mut c = controller();
+        // Muscle short of the set-point: more pressure, valve fills.
+        let s = c.update(&good(0.1, 0.08, 200.0), 0.12);
+        assert!(s.pressure_cmd_mpa > s.feedforward_mpa);
+        assert!(matches!(s.command, ValveCommand::Flow(f) if f > 0.0));
+        assert!(c.integral_mpa() > 0.0);
+        // Pressure above the command: valve vents.
+        let s = c.update(&good(0.45, 0.12, 200.0), 0.12);
+        assert!(matches!(s.command, ValveCommand::Flow(f) if f < 0.0));
+    }
+
+    #[test]
+    fn integrator_is_bounded_and_does_not_wind_up_in_saturation() {
+        let mut c = no_stuck_check();
+        // Set-point beyond reach: the command saturates at Pmax and the
+        // integrator stops growing.
+        for _ in 0..100_000 {
+            let s = c.update(&good(0.5, 0.0, 200.0), 0.2);
+            assert_eq!(s.fault, None);
+            assert!(s.pressure_cmd_mpa <= 0.5);
+        }
+        let held = c.integral_mpa();
+        assert!(
+            held < ControllerConfig::DEFAULT.integral_limit_mpa,
+            "{held}"
+        );
+        // A small error unsaturated: bounded by the limit.
+        let mut c = no_stuck_check();
+        for _ in 0..100_000 {
+            assert_eq!(c.update(&good(0.2, 0.119, 200.0), 0.12).fault, None);
+        }
+        assert!(c.integral_mpa() <= ControllerConfig::DEFAULT.integral_limit_mpa);
+        assert!(c.integral_mpa() > 0.0);
+    }
+
+    #[test]
+    fn set_point_outside_the_stroke_is_clamped() {
+        let mut c = controller();
+        let m = c.tracker().model().clone();
+        let s = c.update(&good(0.5, m.max_contraction(), 200.0), 5.0);
+        assert_eq!(s.fault, None);
+        assert!((s.feedforward_mpa - m.max_pressure_mpa()).abs() < 1e-6);
+    }
+
+    fn faults_then_recovers(bad: Sample, expected: Fault) {
+        let mut c = controller();
+        let ok = good(0.2, 0.1, 200.0);
+        c.update(&ok, 0.1);
+        let s = c.update(&bad, 0.1);
+        assert_eq!(s.fault, Some(expected));
+        assert_eq!(s.new_fault, Some(expected));
+        assert_eq!(s.command, ValveCommand::Safe(SafeState::Exhaust));
+        assert_eq!(c.integral_mpa(), 0.0);
+        let s = c.update(&bad, 0.1);
+        assert_eq!(s.new_fault, None, "reported once");
+        let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+        for k in 1..n {
+            // Alternate the readings slightly so nothing looks stuck.
+            let x = 0.1 + f32::from(k % 2) * 1e-4;
+            let s = c.update(&good(0.2, x, 200.0), 0.1);
+            assert_eq!(s.command, ValveCommand::Safe(SafeState::Exhaust), "{k}");
+            assert!(!s.recovered);
+        }
+        let s = c.update(&ok, 0.1);
+        assert!(s.recovered);
+        assert!(matches!(s.command, ValveCommand::Flow(_)));
+        assert_eq!(c.fault(), None);
+    }
+
+    #[test]
+    fn every_bad_reading_faults_within_one_step_and_recovers_after_a_good_run() {
+        use SensorId::*;
+        let ok = good(0.2, 0.1, 200.0);
+        let cases = [
+            (
+                Sample {
+                    pressure_mpa: Err(SensorErrorKind::Timeout),
+                    ..ok
+                },
+                Fault::Read {
+                    sensor: Pressure,
+                    kind: SensorErrorKind::Timeout,
+                },
+            ),
+            (
+                Sample {
+                    contraction: Ok(f32::NAN),
+                    ..ok
+                },
+                Fault::NonFinite(Contraction),
+            ),
+            (
+                Sample {
+                    contraction: Ok(f32::NEG_INFINITY),
+                    ..ok
+                },
+                Fault::NonFinite(Contraction),
+            ),
+            (
+                Sample {
+                    pressure_mpa: Ok(2.0),
+                    ..ok
+                },
+                Fault::OutOfRange(Pressure),
+            ),
+            (
+                Sample {
+                    load_n: Ok(650.0),
+                    ..ok
+                },
+                Fault::OutOfRange(Load),
+            ),
+            (
+                Sample {
+                    load_n: Ok(50.0),
+                    ..ok
+                },
+                Fault::OutOfRange(Load),
+            ),
+            (
+                Sample {
+                    load_n: Err(SensorErrorKind::Bus),
+                    ..ok
+                },
+                Fault::Read {
+                    sensor: Load,
+                    kind: SensorErrorKind::Bus,
+                },
+            ),
+        ];
+        for (bad, f) in cases {
+            faults_then_recovers(bad, f);
+        }
+    }
+
+    #[test]
+    fn non_finite_set_point_faults() {
+        let mut c = controller();
+        let s = c.update(&good(0.2, 0.1, 200.0), f32::NAN);
+        assert_eq!(s.fault, Some(Fault::Setpoint));
+    }
+
+    #[test]
+    fn frozen_reading_is_stuck_after_the_limit() {
+        let mut c = controller();
+        let limit = ControllerConfig::DEFAULT.safety.stuck_samples;
+        for k in 0..=limit {
+            let p = 0.2 + f32::from(k % 3) * 1e-4;
+            let s = c.update(&good(p, 0.1, 200.0 + f32::from(k % 2)), 0.1);
+            assert_eq!(s.fault, None, "sample {k}");
+        }
+        let s = c.update(&good(0.2, 0.1, 200.0), 0.1);
+        assert_eq!(s.fault, Some(Fault::Stuck(SensorId::Contraction)));
+    }
+
+    #[test]
+    fn config_validation_names_the_field() {
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.validate().unwrap();
+        cfg.dt_s = f32::NAN;
+        assert!(matches!(
+            cfg.validate(),
+            Err(ConfigError::Invalid("dt_s", _))
+        ));
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.recovery_samples = 0;
+        assert!(matches!(
+            cfg.validate(),
+            Err(ConfigError::Invalid("recovery_samples", _))
+        ));
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.tracker.load_debounce_samples = 0;
+        assert!(matches!(cfg.validate(), Err(ConfigError::Tracker(_))));
+    }
+
+    #[test]
+    fn blob_is_checked_at_construction() {
+        let blob = pam_core::blob::encode(&Params::DEFAULT);
+        assert!(Controller::from_blob(&blob, ControllerConfig::DEFAULT, 200.0).is_ok());
+        let mut bad = blob;
+        bad[20] ^= 0x10;
+        assert_eq!(
+            Controller::from_blob(&bad, ControllerConfig::DEFAULT, 200.0).unwrap_err(),
+            ConfigError::Coefficients(pam_core::Error::Blob("CRC mismatch"))
+        );
+        let mut p = Params::DEFAULT;
+        p.points.max_pressure_mpa = -1.0;
+        assert!(matches!(
+            Controller::from_blob(
+                &pam_core::blob::encode(&p),
+                ControllerConfig::DEFAULT,
+                200.0
+            ),
+            Err(ConfigError::Coefficients(_))
+        ));
+    }
+
+    #[test]
+    fn arbitrary_samples_never_panic_and_never_command_nan() {
+        let mut c = controller();
+        let values = [
+            f32::NAN,
+            f32::INFINITY,
+            -1e30,
+            -0.01,
+            0.0,
+            0.1,
+            0.3,
+            0.6,
+            250.0,
+            1e30,
+        ];
+        for &p in &values {
+            for &x in &values {
+                for &l in &values {
+                    for &sp in &values {
+                        let s = c.update(&good(p, x, l), sp);
+                        if let ValveCommand::Flow(f) = s.command {
+                            assert!((-1.0..=1.0).contains(&f), "{p} {x} {l} {sp}: {f}");
+                        }
+                        assert!(s.pressure_cmd_mpa.is_finite());
+                    }
+                }
+            }
+        }
+    }
+}

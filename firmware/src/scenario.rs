@@ -1,0 +1,272 @@
+//! The run-pass scenario of the QEMU image (and of a host test): the real
+//! [`Controller`] drives the simulated muscle of [`crate::plant`] through a
+//! triangle trajectory, with one injected sensor fault.
+//!
+//! * Trajectory: contraction `LOW → HIGH → LOW` ([`LOW`], [`HIGH`]), period
+//!   [`PERIOD_S`], [`CYCLES`] cycles, at [`LOAD_N`], sampled every
+//!   `ControllerConfig::DEFAULT.dt_s`.
+//! * Plant: the controller's parameters with a 25 % higher ellipse (wider
+//!   hysteresis loop) and a 10 % faster growth of `c` with load
+//!   ([`plant_params`]), inlet/exhaust on/off valves with a 5 % dead duty, a
+//!   30 ms lag, and uniform sensor noise of [`NOISE`].
+//! * Fault: the pressure sensor times out for [`FAULT_SAMPLES`] samples from
+//!   [`FAULT_AT_S`]; the valves must be in the safe state (exhaust) after the
+//!   very step that read the first bad sample, and control must resume after
+//!   `recovery_samples` good samples.
+//! * Pass: the tracking error `|desired − actual contraction|` (the plant's
+//!   true contraction, not the noisy sensor) from [`EVAL_FROM_S`] on stays
+//!   within [`MAX_ERROR_BOUND`], the fault is caught as above, and no other
+//!   fault occurs.
+
+use crate::controller::{
+    ConfigError, Controller, ControllerConfig, Feedforward, Io, SensorId, Step,
+};
+use crate::hal::{PressureCalibration, SensorErrorKind, ValvePair, ValvePairConfig};
+use crate::plant::{
+    MusclePlant, Noise, PlantConfig, SimBus, SimContraction, SimLoad, SimPressure, SimPwm,
+};
+use pam_core::{Coeffs, Params};
+
+/// Lower end of the triangle, contraction.
+pub const LOW: f32 = 0.06;
+/// Upper end of the triangle, contraction.
+pub const HIGH: f32 = 0.16;
+/// Period of the triangle, s.
+pub const PERIOD_S: f32 = 4.0;
+/// Number of periods.
+pub const CYCLES: u32 = 3;
+/// Load on the muscle, N.
+pub const LOAD_N: f32 = 200.0;
+/// When the pressure sensor starts timing out, s.
+pub const FAULT_AT_S: f32 = 1.5;
+/// For how many samples it times out.
+pub const FAULT_SAMPLES: u32 = 10;
+/// Start of the error evaluation (after the first period: start-up from
+/// rest and the injected fault are transients), s.
+pub const EVAL_FROM_S: f32 = PERIOD_S;
+/// Sensor noise amplitudes (uniform): pressure in MPa, contraction, load in N.
+pub const NOISE: (f32, f32, f32) = (0.001, 0.0002, 2.0);
+/// The stated bound on the tracking error after [`EVAL_FROM_S`], fraction of
+/// rest length (0.5 % of the muscle's length; the stroke is 10 %).
+pub const MAX_ERROR_BOUND: f32 = 0.005;
+
+/// The plant's parameters: the controller's ([`Params::DEFAULT`]) with a
+/// wider hysteresis loop and a stiffer load dependence, so the model is not
+/// exact.
+pub fn plant_params() -> Params {
+    let mut p = Params::DEFAULT;
+    p.ellipse_height_mpa *= 1.25;
+    p.c_growth_per_step *= 1.1;
+    p
+}
+
+/// The desired contraction at time `t_s`.
+pub fn triangle(t_s: f32) -> f32 {
+    let phase = t_s / PERIOD_S;
+    let frac = phase - (phase as u32) as f32;
+    let up = if frac < 0.5 {
+        2.0 * frac
+    } else {
+        2.0 - 2.0 * frac
+    };
+    LOW + (HIGH - LOW) * up
+}
+
+/// What the run measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Report {
+    /// Steps run.
+    pub steps: u32,
+    /// Largest `|desired − actual|` from [`EVAL_FROM_S`] on.
+    pub max_error: f32,
+    /// RMS of the same.
+    pub rms_error: f32,
+    /// The injected fault was reported on the step that read it, and the
+    /// valves were in the safe state after that step.
+    pub fault_caught: bool,
+    /// Steps from the end of the injected fault to the recovery.
+    pub recovery_steps: Option<u32>,
+    /// Faults reported other than the injected one.
+    pub other_faults: u32,
+}
+
+impl Report {
+    /// Whether the run passes (see the module docs).
+    pub fn passed(&self) -> bool {
+        self.max_error <= MAX_ERROR_BOUND
+            && self.fault_caught
+            && self.recovery_steps.is_some()
+            && self.other_faults == 0
+    }
+}
+
+/// Run the scenario with the controller built from `blob` and the given
+/// feedforward; `on_event` sees every step that reports a new fault or a
+/// recovery (the firmware logs them).
+pub fn run(
+    blob: &[u8],
+    feedforward: Feedforward,
+    mut on_event: impl FnMut(u32, &Step),
+) -> Result<Report, ConfigError> {
+    let mut config = ControllerConfig::DEFAULT;
+    config.feedforward = feedforward;
+    let dt_s = config.dt_s;
+    let mut ctl = Controller::from_blob(blob, config, LOAD_N)?;
+    let plant_coeffs = Coeffs::new(plant_params()).map_err(ConfigError::Coefficients)?;
+    let mut plant = MusclePlant::new(
+        plant_coeffs.load_model_clamped(LOAD_N),
+        PlantConfig::DEFAULT,
+    );
+    let bus = SimBus::new();
+    let calibration = PressureCalibration::ADC12_0_1MPA;
+    let valve = ValvePair::new(
+        SimPwm(&bus.inlet_duty),
+        SimPwm(&bus.exhaust_duty),
+        ValvePairConfig::DEFAULT,
+    )
+    .map_err(|why| ConfigError::Invalid("valve pair", why))?;
+    let mut io = Io {
+        pressure: SimPressure {
+            bus: &bus,
+            calibration,
+        },
+        contraction: SimContraction(&bus),
+        load: SimLoad(&bus),
+        valve,
+    };
+    let mut noise = Noise::new(0x5EED);
+
+    // Rounded: 12 s / 1 ms is 11999.999… in f32.
+    let steps = (CYCLES as f32 * PERIOD_S / dt_s + 0.5) as u32;
+    let fault_from = (FAULT_AT_S / dt_s + 0.5) as u32;
+    let fault_to = fault_from + FAULT_SAMPLES;
+    let eval_from = (EVAL_FROM_S / dt_s + 0.5) as u32;
+    let mut report = Report {
+        steps,
+        max_error: 0.0,
+        rms_error: 0.0,
+        fault_caught: false,
+        recovery_steps: None,
+        other_faults: 0,
+    };
+    let mut sum_sq = 0.0f64;
+    let mut evaluated = 0u32;
+    for k in 0..steps {
+        let desired = triangle(k as f32 * dt_s);
+        bus.publish(&plant, LOAD_N, &calibration, &mut noise, NOISE);
+        let injected = k >= fault_from && k < fault_to;
+        bus.failing.set(if injected {
+            Some((SensorId::Pressure, SensorErrorKind::Timeout))
+        } else {
+            None
+        });
+        let step = ctl.step(&mut io, desired);
+        if step.new_fault.is_some() || step.recovered {
+            on_event(k, &step);
+        }
+        if let Some(f) = step.new_fault {
+            if k == fault_from {
+                let exhaust =
+                    (bus.inlet_duty.get(), bus.exhaust_duty.get()) == (0, SimPwm::MAX_DUTY);
+                report.fault_caught = exhaust
+                    && f == crate::controller::Fault::Read {
+                        sensor: SensorId::Pressure,
+                        kind: SensorErrorKind::Timeout,
+                    };
+            } else {
+                report.other_faults += 1;
+            }
+        }
+        if step.recovered && k >= fault_to && report.recovery_steps.is_none() {
+            report.recovery_steps = Some(k - fault_to + 1);
+        }
+        let (inlet, exhaust) = bus.duties();
+        plant.step(inlet, exhaust, dt_s);
+        if k >= eval_from {
+            let e = (desired - plant.contraction()).abs();
+            if e > report.max_error || e.is_nan() {
+                report.max_error = if e.is_nan() { f32::INFINITY } else { e };
+            }
+            sum_sq += f64::from(e) * f64::from(e);
+            evaluated += 1;
+        }
+    }
+    if evaluated > 0 {
+        report.rms_error = libm_sqrt(sum_sq / f64::from(evaluated)) as f32;
+    }
+    Ok(report)
+}
+
+/// Square root by Newton's method (the library has no `std`, and this runs
+/// once per scenario).
+fn libm_sqrt(v: f64) -> f64 {
+    if !(v > 0.0) {
+        return 0.0;
+    }
+    let mut x = if v > 1.0 { v } else { 1.0 };
+    for _ in 0..64 {
+        x = 0.5 * (x + v / x);
+    }
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blob() -> [u8; pam_core::blob::BLOB_LEN] {
+        pam_core::blob::encode(&Params::DEFAULT)
+    }
+
+    #[test]
+    fn triangle_shape() {
+        assert!((triangle(0.0) - LOW).abs() < 1e-6);
+        assert!((triangle(PERIOD_S / 2.0) - HIGH).abs() < 1e-6);
+        assert!((triangle(PERIOD_S / 4.0) - 0.5 * (LOW + HIGH)).abs() < 1e-6);
+        assert!((triangle(PERIOD_S * 1.25) - 0.5 * (LOW + HIGH)).abs() < 1e-5);
+    }
+
+    #[test]
+    fn sqrt_is_right() {
+        for v in [0.0, 1e-10, 0.25, 2.0, 1e6] {
+            assert!((libm_sqrt(v) - v.sqrt()).abs() <= 1e-12 * (1.0 + v.sqrt()));
+        }
+    }
+
+    #[test]
+    fn the_qemu_scenario_passes_on_the_host() {
+        let mut events = 0;
+        let r = run(&blob(), Feedforward::Hysteresis, |_, _| events += 1).unwrap();
+        println!("{r:?}");
+        assert!(r.passed(), "{r:?}");
+        assert_eq!(events, 2, "one fault, one recovery");
+        assert_eq!(
+            r.recovery_steps,
+            Some(u32::from(ControllerConfig::DEFAULT.safety.recovery_samples))
+        );
+    }
+
+    #[test]
+    fn hysteresis_feedforward_beats_the_alternatives() {
+        let with = run(&blob(), Feedforward::Hysteresis, |_, _| {}).unwrap();
+        let constraint = run(&blob(), Feedforward::Constraint, |_, _| {}).unwrap();
+        let off = run(&blob(), Feedforward::Off, |_, _| {}).unwrap();
+        println!("hysteresis {with:?}\nconstraint {constraint:?}\noff {off:?}");
+        assert!(
+            with.rms_error < constraint.rms_error,
+            "{with:?} {constraint:?}"
+        );
+        assert!(with.rms_error < off.rms_error, "{with:?} {off:?}");
+    }
+
+    #[test]
+    fn a_corrupt_blob_is_refused() {
+        let mut b = blob();
+        b[9] ^= 1;
+        assert!(matches!(
+            run(&b, Feedforward::Hysteresis, |_, _| {}),
+            Err(ConfigError::Coefficients(pam_core::Error::Blob(_)))
+        ));
+    }
+}
