@@ -1,2 +1,2 @@
-//! Work in progress: see the open issues.
+//! `pam-lab`: see the crate docs.
 fn main() {}

@@ -1,0 +1,244 @@
+//! Plots of `pam-lab diagnose`: the residual against time with the regimes
+//! marked, and the loops before and after the added effects.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::data::Record;
+use crate::diagnose::DiagnoseReport;
+
+const BASE: RGBColor = RGBColor(200, 40, 40);
+const AFTER: RGBColor = RGBColor(30, 80, 200);
+
+/// Runs of `true` in `mask` as `(first, last)` index pairs.
+fn runs(mask: &[bool]) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut start = None;
+    for (i, &m) in mask.iter().enumerate() {
+        match (m, start) {
+            (true, None) => start = Some(i),
+            (false, Some(s)) => {
+                out.push((s, i - 1));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        out.push((s, mask.len() - 1));
+    }
+    out
+}
+
+/// Residual (measured − predicted contraction) against time, base and final
+/// model; held-out blocks shaded; regime bands along the bottom.
+pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
+    let s = &record.samples;
+    let res_b: Vec<f64> = s
+        .iter()
+        .zip(&r.predicted_base)
+        .map(|(s, x)| s.contraction - x)
+        .collect();
+    let res_a: Vec<f64> = s
+        .iter()
+        .zip(&r.predicted_after)
+        .map(|(s, x)| s.contraction - x)
+        .collect();
+    let lim = res_b
+        .iter()
+        .chain(&res_a)
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(1e-3)
+        * 1.1;
+    let t0 = s.first().map_or(0.0, |x| x.t_s);
+    let t1 = s.last().map_or(1.0, |x| x.t_s).max(t0 + 1e-3);
+    let root = BitMapBackend::new(path, (1600, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let title = format!(
+        "{}: residual, held-out RMS {:.5} (paper) -> {:.5} (+ {})",
+        r.source,
+        r.rms_before,
+        r.rms_after,
+        if r.effects_added.is_empty() {
+            "nothing".to_string()
+        } else {
+            r.effects_added.join(" + ")
+        }
+    );
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t0..t1, -lim..lim)?;
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc("measured - predicted contraction")
+        .light_line_style(WHITE)
+        .draw()?;
+    let t = |i: usize| s[i].t_s;
+    // Held-out blocks.
+    chart.draw_series(runs(&r.heldout).into_iter().map(|(a, b)| {
+        Rectangle::new(
+            [(t(a), -lim), (t(b), lim)],
+            RGBColor(235, 235, 235).filled(),
+        )
+    }))?;
+    // Regime bands, each on its own strip at the bottom.
+    let bands: [(&str, &Vec<bool>, RGBColor); 4] = [
+        (
+            "after inner reversal",
+            &r.regimes.after_inner_reversal,
+            RGBColor(255, 150, 0),
+        ),
+        ("fast ramp", &r.regimes.fast_ramp, RGBColor(220, 0, 160)),
+        ("slow ramp", &r.regimes.slow_ramp, RGBColor(0, 170, 170)),
+        (
+            "hold after step",
+            &r.regimes.hold_after_step,
+            RGBColor(60, 170, 60),
+        ),
+    ];
+    for (k, (name, mask, color)) in bands.iter().enumerate() {
+        let y1 = -lim + lim * 0.05 * (k as f64 + 1.0);
+        let y0 = y1 - lim * 0.04;
+        let color = *color;
+        chart
+            .draw_series(
+                runs(mask)
+                    .into_iter()
+                    .map(move |(a, b)| Rectangle::new([(t(a), y0), (t(b), y1)], color.filled())),
+            )?
+            .label(*name)
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], color.filled()));
+    }
+    chart
+        .draw_series(LineSeries::new(
+            (0..s.len()).map(|i| (t(i), res_b[i])),
+            BASE.stroke_width(1),
+        ))?
+        .label("paper's model")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 15, y)], BASE.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(
+            (0..s.len()).map(|i| (t(i), res_a[i])),
+            AFTER.stroke_width(1),
+        ))?
+        .label("with added effects")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 15, y)], AFTER.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// Pressure–contraction loops of the first held-out block: measured (grey)
+/// against the paper's model (left) and the model with the added effects
+/// (right).
+pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
+    let s = &record.samples;
+    let (a, b) = runs(&r.heldout)
+        .first()
+        .copied()
+        .unwrap_or((0, s.len().saturating_sub(1)));
+    let idx: Vec<usize> = (a..=b).collect();
+    let xmax = idx
+        .iter()
+        .map(|&i| s[i].contraction)
+        .chain(idx.iter().map(|&i| r.predicted_after[i]))
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max)
+        * 1.05;
+    let pmax = idx
+        .iter()
+        .map(|&i| s[i].pressure_mpa)
+        .fold(0.0f64, f64::max)
+        * 1.05;
+    let root = BitMapBackend::new(path, (1600, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let panels = root.split_evenly((1, 2));
+    let load = idx.first().map_or(0.0, |&i| s[i].load_n);
+    for (k, panel) in panels.iter().enumerate() {
+        let (pred, color, name, rms) = if k == 0 {
+            (
+                &r.predicted_base,
+                BASE,
+                "paper's model".to_string(),
+                r.rms_before,
+            )
+        } else {
+            (
+                &r.predicted_after,
+                AFTER,
+                if r.effects_added.is_empty() {
+                    "no effect added".to_string()
+                } else {
+                    format!("+ {}", r.effects_added.join(" + "))
+                },
+                r.rms_after,
+            )
+        };
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("held-out block at {load:.0} N: {name} (held-out RMS {rms:.5})"),
+                ("sans-serif", 20),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..pmax.max(0.1), 0.0..xmax.max(0.05))?;
+        chart
+            .configure_mesh()
+            .x_desc("pressure, MPa")
+            .y_desc("contraction")
+            .draw()?;
+        chart
+            .draw_series(idx.iter().map(|&i| {
+                Circle::new(
+                    (s[i].pressure_mpa, s[i].contraction),
+                    1,
+                    RGBColor(150, 150, 150).filled(),
+                )
+            }))?
+            .label("measured")
+            .legend(|(x, y)| Circle::new((x + 7, y), 3, RGBColor(150, 150, 150).filled()));
+        chart
+            .draw_series(LineSeries::new(
+                idx.iter().map(|&i| (s[i].pressure_mpa, pred[i])),
+                color.stroke_width(1),
+            ))?
+            .label("simulated from measured pressure")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 15, y)], color.stroke_width(2))
+            });
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::runs;
+
+    #[test]
+    fn runs_of_a_mask() {
+        assert_eq!(
+            runs(&[false, true, true, false, true]),
+            vec![(1, 2), (4, 4)]
+        );
+        assert!(runs(&[]).is_empty());
+    }
+}

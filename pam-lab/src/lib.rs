@@ -1,0 +1,35 @@
+//! # pam-lab
+//!
+//! Host-side tools around [`pam_core`]: identify the paper's hysteresis model
+//! from test-rig measurements ([`fit`]), drive the model with measured
+//! pressure and load ([`simulate`]), and export what the firmware flashes
+//! ([`model_file`]: the model file, the coefficient blob and a Rust constants
+//! file).
+//!
+//! The binary `pam-lab` is a thin command-line layer over these modules; the
+//! library is the reusable part (for example for `pam-lab diagnose`).
+//!
+//! ```
+//! use pam_lab::{data, fit, synth};
+//! use pam_core::Params;
+//!
+//! // A characterisation record generated from the built-in reference muscle.
+//! let record = synth::generate(&Params::DEFAULT, &synth::Protocol::quick(&[100.0, 300.0]), 0.0, 0.0, 1);
+//! let report = fit::fit(&record, &fit::FitConfig::default()).unwrap();
+//! let got = report.params.points.root_contraction;
+//! assert!((got - Params::DEFAULT.points.root_contraction).abs() < 1e-3);
+//! # let _ = data::Record::default();
+//! ```
+#![warn(missing_docs)]
+
+pub mod atomic;
+pub mod data;
+pub mod diagnose;
+pub mod diagnose_plot;
+pub mod fit;
+pub mod model_file;
+pub mod plot;
+pub mod simulate;
+pub mod split;
+pub mod stats;
+pub mod synth;

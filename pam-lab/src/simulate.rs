@@ -1,0 +1,1 @@
+//! Driving the model with measured pressure and load.

@@ -1,0 +1,296 @@
+//! Test rigs with one hidden effect each, writing measured-format CSV.
+//!
+//! The plants are built independently of `pam_core::effects`, so that a test
+//! that names the effect is not circular:
+//!
+//! * the paper's branches come from an `f64` bisection of eqs. (21)–(26)
+//!   written here (only the load family's cubic is taken from pam-core);
+//! * `NonLocalMemory`: an unbounded list of turning points and the
+//!   *similarity* rule — a minor curve is the branch of its direction,
+//!   affinely rescaled to pass through its two turning points — instead of
+//!   the effect model's power-law blend of offsets;
+//! * `Rate`: ellipse height `be0 + c·|ṗ|^0.7` from the plant's own rate
+//!   (a viscous friction with a sub-linear law), not a linear factor;
+//! * `Creep`: a chain of two Kelvin–Voigt elements (1.5 s and 6 s), not one
+//!   first-order lag;
+//! * `Width`: ellipse height `be0·(L/100 N)^1.3` (friction growing faster
+//!   than the load), not linear in load;
+//! * `None`: the paper's model with its jump to the other branch.
+//!
+//! The protocol follows the examples' README: at 100, 200 and 300 N, two full
+//! cycles at 0.05 MPa/s, partial cycles reversing inside the loop, full cycles
+//! at 0.02 and 0.2 MPa/s, pressure steps to three levels with 8 s holds; then
+//! full cycles at random loads between 100 and 350 N. Sampled at 50 Hz with
+//! 0.001 MPa pressure noise and 0.0008 contraction noise.
+
+#![allow(dead_code)]
+
+use pam_core::{Coeffs, Params};
+
+/// Which effect the rig has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plant {
+    /// The paper's model only.
+    None,
+    /// Minor loops that close on the previous turning point.
+    NonLocalMemory,
+    /// Loop height grows with the pressure rate.
+    Rate,
+    /// Slow relaxation after steps.
+    Creep,
+    /// Loop height grows with load.
+    Width,
+}
+
+impl Plant {
+    /// The name `pam-lab diagnose` should give it.
+    pub fn expected_name(self) -> &'static str {
+        match self {
+            Plant::None => "none",
+            Plant::NonLocalMemory => "non_local_memory",
+            Plant::Rate => "rate_dependence",
+            Plant::Creep => "creep",
+            Plant::Width => "load_dependent_width",
+        }
+    }
+}
+
+const HZ: f64 = 50.0;
+const DT: f64 = 1.0 / HZ;
+
+/// SplitMix64 + Box–Muller: deterministic noise without a dependency.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn uniform(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn normal(&mut self) -> f64 {
+        let u1 = self.uniform().max(1e-300);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+}
+
+/// The true (noise-free) drive: `(t_s, load_n, pressure_mpa)` at 50 Hz.
+/// `short` keeps one full cycle per load, the 0.02 MPa/s cycle only at the
+/// first load and four random-load cycles (for quick tests).
+pub fn protocol(seed: u64, short: bool) -> Vec<(f64, f64, f64)> {
+    let mut out = Vec::new();
+    let mut p = 0.0f64;
+    let mut t = 0.0f64;
+    let mut rng = Rng(seed ^ 0x5EED);
+    let mut ramp = |out: &mut Vec<(f64, f64, f64)>, p: &mut f64, load: f64, to: f64, rate: f64| {
+        let n = ((to - *p).abs() / (rate * DT)).ceil().max(1.0) as usize;
+        let from = *p;
+        for k in 1..=n {
+            *p = from + (to - from) * k as f64 / n as f64;
+            out.push((t, load, *p));
+            t += DT;
+        }
+    };
+    for (i, &load) in [100.0, 200.0, 300.0].iter().enumerate() {
+        let cycles = if short { 1 } else { 2 };
+        for _ in 0..cycles {
+            ramp(&mut out, &mut p, load, 0.5, 0.05);
+            ramp(&mut out, &mut p, load, 0.0, 0.05);
+        }
+        // Partial cycles reversing inside the loop.
+        for to in [0.3, 0.15, 0.4, 0.25, 0.45, 0.1, 0.35, 0.0] {
+            ramp(&mut out, &mut p, load, to, 0.05);
+        }
+        if !short || i == 0 {
+            ramp(&mut out, &mut p, load, 0.5, 0.02);
+            ramp(&mut out, &mut p, load, 0.0, 0.02);
+        }
+        ramp(&mut out, &mut p, load, 0.5, 0.2);
+        ramp(&mut out, &mut p, load, 0.0, 0.2);
+        // Steps with 8 s holds (a step is one sample long).
+        for level in [0.25, 0.4, 0.1] {
+            p = level;
+            for _ in 0..(8.0 * HZ) as usize {
+                out.push((t, load, p));
+                t += DT;
+            }
+        }
+        ramp(&mut out, &mut p, load, 0.0, 0.05);
+    }
+    let random_cycles = if short { 4 } else { 6 };
+    for _ in 0..random_cycles {
+        let load = 100.0 + 50.0 * (rng.uniform() * 6.0).floor().min(5.0);
+        ramp(&mut out, &mut p, load, 0.5, 0.05);
+        ramp(&mut out, &mut p, load, 0.0, 0.05);
+    }
+    out
+}
+
+/// The paper's branches, eqs. (21)–(26), evaluated in `f64` by bisection.
+struct Muscle {
+    coeffs: Coeffs,
+    pmax: f64,
+}
+
+impl Muscle {
+    fn new(params: Params) -> Muscle {
+        Muscle {
+            coeffs: Coeffs::new(params).expect("plant parameters are valid"),
+            pmax: f64::from(params.points.max_pressure_mpa),
+        }
+    }
+
+    /// Contraction on a branch (`sign` +1 contraction, −1 expansion) at
+    /// pressure `p` with ellipse height `be` at `load`.
+    fn branch_x(&self, load: f64, p: f64, sign: f64, be: f64) -> f64 {
+        let at = self.coeffs.load_cubic(load as f32);
+        let (r, rx) = (at.cubic.root, at.max_contraction);
+        let ae = 0.5 * (rx - r);
+        let h = r + ae;
+        let g = |x: f64| {
+            let u = (x - h) / ae;
+            let e = (1.0 - u * u).max(0.0).sqrt();
+            at.cubic.eval(x) + sign * be * e
+        };
+        let p = p.clamp(0.0, self.pmax);
+        let (mut lo, mut hi) = (r, rx);
+        for _ in 0..50 {
+            let mid = 0.5 * (lo + hi);
+            if g(mid) <= p {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+}
+
+fn params_for(plant: Plant) -> Params {
+    let mut p = Params::DEFAULT;
+    // Each rig's muscle differs a little.
+    match plant {
+        Plant::None => {}
+        Plant::NonLocalMemory => {
+            p.ellipse_height_mpa = 0.025;
+            p.points.max_contraction = 0.26;
+        }
+        Plant::Rate => {
+            p.points.root_contraction = 0.02;
+        }
+        Plant::Creep => {
+            p.points.inflection.pressure_mpa = 0.27;
+        }
+        Plant::Width => {
+            p.root_regression_per_step = 0.004;
+        }
+    }
+    p
+}
+
+/// True contraction of `plant` along `drive`.
+pub fn respond(plant: Plant, drive: &[(f64, f64, f64)]) -> Vec<f64> {
+    let params = params_for(plant);
+    let m = Muscle::new(params);
+    let be0 = f64::from(params.ellipse_height_mpa);
+    let mut out = Vec::with_capacity(drive.len());
+    let mut sign = 1.0f64;
+    let mut last_p = drive.first().map_or(0.0, |d| d.2);
+    // Memory plant: turning points (p, x), oldest first, unbounded.
+    let mut turns: Vec<(f64, f64)> = Vec::new();
+    let mut last_x = 0.0f64;
+    let mut last_load = drive.first().map_or(100.0, |d| d.1);
+    // Rate plant: the plant's own smoothed rate (0.1 s viscous time).
+    let mut rate = 0.0f64;
+    // Creep plant: two Kelvin–Voigt deficits and the previous static value.
+    let mut deficits = [0.0f64; 2];
+    let mut last_static: Option<f64> = None;
+    for &(_, load, p) in drive {
+        let dp = p - last_p;
+        let reversed = dp * sign < -1e-12;
+        if dp.abs() > 1e-12 {
+            if reversed && plant == Plant::NonLocalMemory {
+                turns.push((last_p, last_x));
+            }
+            sign = dp.signum();
+        }
+        last_p = p;
+        rate += (dp / DT - rate) * (DT / (0.1 + DT));
+        if load != last_load {
+            turns.clear();
+            last_load = load;
+        }
+        let x = match plant {
+            Plant::None | Plant::Creep => m.branch_x(load, p, sign, be0),
+            Plant::Width => m.branch_x(load, p, sign, 0.008 * (load / 100.0).powf(1.3)),
+            Plant::Rate => {
+                let be = (0.010 + 0.0926 * rate.abs().powf(0.7)).min(0.1);
+                m.branch_x(load, p, sign, be)
+            }
+            Plant::NonLocalMemory => {
+                // Wiping-out: drop closed loops.
+                while turns.len() >= 2 {
+                    let target = turns[turns.len() - 2];
+                    let passed = if sign > 0.0 { p > target.0 } else { p < target.0 };
+                    if passed {
+                        turns.truncate(turns.len() - 2);
+                    } else {
+                        break;
+                    }
+                }
+                let branch = |q: f64| m.branch_x(load, q, sign, be0);
+                match turns.last() {
+                    None => branch(p),
+                    Some(&(pr, xr)) => {
+                        let (pt, xt) = if turns.len() >= 2 {
+                            turns[turns.len() - 2]
+                        } else if sign > 0.0 {
+                            (m.pmax, branch(m.pmax))
+                        } else {
+                            (0.0, branch(0.0))
+                        };
+                        let (br, bt) = (branch(pr), branch(pt));
+                        if (br - bt).abs() < 1e-9 {
+                            xt
+                        } else {
+                            xt + (xr - xt) * (branch(p) - bt) / (br - bt)
+                        }
+                    }
+                }
+            }
+        };
+        let x = if plant == Plant::Creep {
+            let dx = last_static.map_or(0.0, |s| x - s);
+            last_static = Some(x);
+            let mut out_x = x;
+            for (d, (a, tau)) in deficits.iter_mut().zip([(0.07, 1.5), (0.05, 6.0)]) {
+                *d = (*d + a * dx) * (-DT / tau).exp();
+                out_x -= *d;
+            }
+            out_x
+        } else {
+            x
+        };
+        last_x = x;
+        out.push(x);
+    }
+    out
+}
+
+/// Measured-format CSV of `plant` along the protocol, with noise.
+pub fn csv(plant: Plant, seed: u64, short: bool) -> String {
+    let drive = protocol(seed, short);
+    let x = respond(plant, &drive);
+    let mut rng = Rng(seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ plant as u64);
+    let mut s = String::from("t_s,load_n,pressure_mpa,contraction\n");
+    for (&(t, load, p), x) in drive.iter().zip(x) {
+        let pm = p + 0.001 * rng.normal();
+        let xm = x + 0.0008 * rng.normal();
+        s.push_str(&format!("{t:.3},{load:.1},{pm:.5},{xm:.5}\n"));
+    }
+    s
+}
