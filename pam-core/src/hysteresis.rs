@@ -16,37 +16,41 @@
 //! zero, the contraction branch reaches `Pmax` before `Rx_i`. The inverse works
 //! on the branch's monotone hull (its running maximum from `R_i`) and returns
 //! the *largest* contraction whose hull pressure does not exceed the pressure
-//! asked for. So `contraction(Pmax, ·)` is `Rx_i`; `contraction(0, Expansion)`
-//! is a contraction at which the expansion branch is at zero pressure, no
-//! further than one table interval (1/32 of the stroke) before the point
-//! where it leaves zero (the dip is about `2·be²/(ae·CM'(R))`, 2·10⁻⁴ for the
-//! default muscle); and where a branch is strictly increasing
-//! `pressure_mpa(contraction(p)) = p` within [`INVERSE_TOLERANCE_MPA`].
+//! asked for. So `contraction(Pmax, ·)` is `Rx_i`, `contraction(0, Expansion)`
+//! is where the expansion branch leaves zero (the dip is about
+//! `2·be²/(ae·CM'(R))`, 2·10⁻⁴ of contraction for the default muscle), and
+//! where a branch is strictly increasing `pressure_mpa(contraction(p)) = p`
+//! within [`INVERSE_TOLERANCE_MPA`].
 //!
-//! The inverse is bounded work: a binary search over a table of
-//! [`INVERSE_KNOTS`] hull values per branch built with the model, then
-//! [`INVERSE_NEWTON_STEPS`] bracketed Newton steps.
+//! # Cost
+//! Building a model (at start-up and on every load switch) solves the inverse
+//! precisely at [`INVERSE_INTERVALS`]` + 1` pressures per branch. Per sample,
+//! the inverse is then one table look-up indexed directly by pressure (no
+//! search), a linear interpolation and one Newton step kept inside the table
+//! interval: fixed work, two divisions and one square root.
 
 use crate::branch::Branch;
 use crate::load_family::Coeffs;
 use crate::math::{clamp, sqrt};
 
-/// Knots of the inverse table per branch (uniform in contraction over
-/// `[R_i, Rx_i]`, ends included). A power of two plus one keeps the binary
-/// search at a fixed `log2(INVERSE_KNOTS − 1)` steps.
-pub const INVERSE_KNOTS: usize = 33;
+/// Intervals of the inverse table per branch, uniform in pressure over
+/// `[0, Pmax]`.
+pub const INVERSE_INTERVALS: usize = 64;
 
-/// Bracketed Newton steps after the table look-up.
-pub const INVERSE_NEWTON_STEPS: usize = 3;
+/// Contraction knots of the forward hull used while building the inverse table.
+const BUILD_KNOTS: usize = 33;
+
+/// Safeguarded Newton iterations per table entry while building.
+const BUILD_ITERATIONS: usize = 12;
 
 /// Bound on `|pressure_mpa(contraction(p, br), br) − p|` on the strictly
-/// increasing part of a branch, MPa; checked by the property tests.
+/// increasing part of a branch, MPa; checked by the unit and property tests.
 pub const INVERSE_TOLERANCE_MPA: f32 = 2e-4;
 
 /// The hysteresis model at one load, ready for per-sample evaluation.
 ///
 /// Built by [`Coeffs::load_model`]; holds `f32` coefficients and the inverse
-/// tables, about 300 bytes, no references.
+/// tables (about 560 bytes), no references.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadModel {
     load_n: f32,
@@ -65,9 +69,11 @@ pub struct LoadModel {
     /// `be` of eq. (24), MPa.
     height_mpa: f32,
     max_pressure_mpa: f32,
-    knot_step: f32,
-    /// Running maximum of each clamped branch at the knots: `[contraction, expansion]`.
-    hull_mpa: [[f32; INVERSE_KNOTS]; 2],
+    /// `INVERSE_INTERVALS / Pmax`: table index per MPa.
+    intervals_per_mpa: f32,
+    /// Contraction at pressures `k·Pmax/INVERSE_INTERVALS` on each branch,
+    /// `[contraction, expansion]`; the last entry is the left limit at `Pmax`.
+    inverse_table: [[f32; INVERSE_INTERVALS + 1]; 2],
 }
 
 impl LoadModel {
@@ -92,28 +98,89 @@ impl LoadModel {
             inv_half_width: (1.0 / half_width) as f32,
             height_mpa: params.ellipse_height_mpa,
             max_pressure_mpa: params.points.max_pressure_mpa,
-            knot_step: (max_contraction - root) / (INVERSE_KNOTS - 1) as f32,
-            hull_mpa: [[0.0; INVERSE_KNOTS]; 2],
+            intervals_per_mpa: INVERSE_INTERVALS as f32 / params.points.max_pressure_mpa,
+            inverse_table: [[0.0; INVERSE_INTERVALS + 1]; 2],
         };
-        for (bi, branch) in [Branch::Contraction, Branch::Expansion]
-            .into_iter()
-            .enumerate()
-        {
-            let mut running = 0.0f32;
-            for k in 0..INVERSE_KNOTS {
-                let p = model.pressure_mpa(model.knot(k), branch);
-                running = if p > running { p } else { running };
-                model.hull_mpa[bi][k] = running;
-            }
-        }
+        model.inverse_table = [
+            model.build_inverse(Branch::Contraction),
+            model.build_inverse(Branch::Expansion),
+        ];
         model
     }
 
-    fn knot(&self, k: usize) -> f32 {
-        if k + 1 >= INVERSE_KNOTS {
-            self.max_contraction
+    /// The inverse table of one branch, solved precisely from the branch's
+    /// monotone hull on [`BUILD_KNOTS`] contraction knots.
+    fn build_inverse(&self, branch: Branch) -> [f32; INVERSE_INTERVALS + 1] {
+        let step = (self.max_contraction - self.root) / (BUILD_KNOTS - 1) as f32;
+        let knot = |j: usize| {
+            if j + 1 >= BUILD_KNOTS {
+                self.max_contraction
+            } else {
+                self.root + step * j as f32
+            }
+        };
+        let mut hull = [0.0f32; BUILD_KNOTS];
+        let mut running = 0.0f32;
+        for (j, h) in hull.iter_mut().enumerate() {
+            let p = self.pressure_mpa(knot(j), branch);
+            running = if p > running { p } else { running };
+            *h = running;
+        }
+        let top = hull[BUILD_KNOTS - 1];
+        let mut table = [0.0f32; INVERSE_INTERVALS + 1];
+        for (k, x) in table.iter_mut().enumerate() {
+            let last = k == INVERSE_INTERVALS;
+            // Entry k: sup{x : hull(x) <= p_k}; the last entry: the left limit
+            // at the hull's top, inf{x : hull(x) >= top}.
+            let p = if last {
+                top
+            } else {
+                self.max_pressure_mpa * k as f32 / INVERSE_INTERVALS as f32
+            };
+            let j = if last {
+                hull.iter()
+                    .position(|&h| h >= top)
+                    .unwrap_or(BUILD_KNOTS - 1)
+            } else {
+                // Largest j with hull[j] <= p, then the crossing lies in [j, j + 1].
+                hull.iter().rposition(|&h| h <= p).unwrap_or(0) + 1
+            };
+            *x = if j == 0 {
+                self.root
+            } else if j >= BUILD_KNOTS {
+                self.max_contraction
+            } else {
+                self.solve_crossing(knot(j - 1), knot(j), p, branch, last)
+            };
+        }
+        table
+    }
+
+    /// Bracketed Newton with bisection fallback for `branch(x) = p` in
+    /// `[lo, hi]`, where `branch(lo) <= p` and `branch(hi) > p` (or `>= p`
+    /// when `upper`, the left-limit case).
+    fn solve_crossing(&self, mut lo: f32, mut hi: f32, p: f32, branch: Branch, upper: bool) -> f32 {
+        let sign = branch.offset_sign();
+        let mut x = 0.5 * (lo + hi);
+        for _ in 0..BUILD_ITERATIONS {
+            let (g, dg) = self.branch_and_slope(x, sign);
+            let below = if upper { g < p } else { g <= p };
+            if below {
+                lo = x;
+            } else {
+                hi = x;
+            }
+            let next = x + (p - g) / dg;
+            x = if next > lo && next < hi {
+                next
+            } else {
+                0.5 * (lo + hi)
+            };
+        }
+        if upper {
+            hi
         } else {
-            self.root + self.knot_step * k as f32
+            x
         }
     }
 
@@ -203,61 +270,45 @@ impl LoadModel {
     /// Inverse model: the contraction at which `branch` has `pressure_mpa`.
     ///
     /// Returns a value in `[R_i, Rx_i]`, never NaN; see the module docs for
-    /// the branch ends. Bounded work: 5 table comparisons and
-    /// [`INVERSE_NEWTON_STEPS`] Newton steps.
+    /// the branch ends. Fixed work: one table look-up, one interpolation, one
+    /// Newton step (two divisions, one square root).
     pub fn contraction(&self, pressure_mpa: f32, branch: Branch) -> f32 {
         let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
-        let hull = match branch {
-            Branch::Contraction => &self.hull_mpa[0],
-            Branch::Expansion => &self.hull_mpa[1],
-        };
-        let last = INVERSE_KNOTS - 1;
-        if p >= hull[last] {
+        if p >= self.max_pressure_mpa {
             return self.max_contraction;
         }
-        // Invariant: hull[lo] <= p < hull[hi]. hull[0] is the pressure at R_i,
-        // which is 0 on both branches, so it holds from the start.
-        let (mut lo, mut hi) = (0usize, last);
-        while hi - lo > 1 {
-            let mid = (lo + hi) / 2;
-            // `get` keeps the search panic-free; mid < last always holds.
-            if hull.get(mid).copied().unwrap_or(f32::INFINITY) <= p {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        let (h_lo, h_hi) = (
-            hull.get(lo).copied().unwrap_or(0.0),
-            hull.get(hi).copied().unwrap_or(0.0),
-        );
-        let (mut x_lo, mut x_hi) = (self.knot(lo), self.knot(hi));
-        // Since the hull rises at `hi`, branch(x_hi) = hull[hi] > p while
-        // branch(x_lo) <= hull[lo] <= p: [x_lo, x_hi] brackets the crossing.
-        let frac = if h_hi > h_lo {
-            (p - h_lo) / (h_hi - h_lo)
-        } else {
-            0.5
+        let table = match branch {
+            Branch::Contraction => &self.inverse_table[0],
+            Branch::Expansion => &self.inverse_table[1],
         };
-        let mut x = x_lo + frac * (x_hi - x_lo);
-        let sign = branch.offset_sign();
-        for _ in 0..INVERSE_NEWTON_STEPS {
-            let (g, dg) = self.branch_and_slope(x, sign);
-            if g <= p {
-                x_lo = x;
-            } else {
-                x_hi = x;
-            }
-            let next = x + (p - g) / dg;
-            // Newton only while it stays inside the bracket (this also catches
-            // dg = 0 or ±inf at the ellipse ends); bisect otherwise.
-            x = if next >= x_lo && next <= x_hi {
-                next
-            } else {
-                0.5 * (x_lo + x_hi)
-            };
+        let t = p * self.intervals_per_mpa;
+        // `as` saturates, and `min` keeps k + 1 inside the table.
+        let k = (t as usize).min(INVERSE_INTERVALS - 1);
+        let frac = t - k as f32;
+        let (x_lo, x_hi) = match (table.get(k), table.get(k + 1)) {
+            (Some(&a), Some(&b)) => (a, b),
+            _ => return self.root, // unreachable: k < INVERSE_INTERVALS
+        };
+        // Where the ellipse's vertical tangent meets the stroke end (contraction
+        // branch at R_i, expansion branch at Rx_i), pressure goes as the square
+        // root of the distance to the end, so contraction goes as the square of
+        // the pressure: interpolate quadratically there, linearly elsewhere.
+        let w = match branch {
+            Branch::Contraction if k == 0 => frac * frac,
+            Branch::Expansion if k == INVERSE_INTERVALS - 1 => 1.0 - (1.0 - frac) * (1.0 - frac),
+            _ => frac,
+        };
+        let x = x_lo + w * (x_hi - x_lo);
+        let (g, dg) = self.branch_and_slope(x, branch.offset_sign());
+        let next = x + (p - g) / dg;
+        // The answer lies in [x_lo, x_hi] (the inverse is non-decreasing);
+        // a Newton step that leaves it (steep ellipse ends, dg = 0 or ±inf,
+        // NaN) is not taken.
+        if next >= x_lo && next <= x_hi {
+            next
+        } else {
+            x
         }
-        clamp(x, self.root, self.max_contraction)
     }
 }
 
@@ -314,23 +365,20 @@ mod tests {
     fn inverse_at_branch_ends() {
         let m = model(200.0);
         assert_eq!(m.contraction(0.5, Branch::Contraction), m.max_contraction());
-        assert_eq!(
-            m.contraction(0.0, Branch::Contraction),
-            m.root_contraction()
-        );
+        assert!((m.contraction(0.0, Branch::Contraction) - m.root_contraction()).abs() < 1e-5);
         // The expansion branch rests where it leaves zero pressure.
         let x0 = m.contraction(0.0, Branch::Expansion);
-        assert!(x0 >= m.root_contraction());
-        assert_eq!(m.pressure_mpa(x0, Branch::Expansion), 0.0);
-        let stroke = m.max_contraction() - m.root_contraction();
-        assert!(m.pressure_mpa(x0 + stroke / 32.0, Branch::Expansion) > 0.0);
+        assert!(x0 > m.root_contraction());
+        assert!(m.pressure_mpa(x0 - 1e-5, Branch::Expansion) == 0.0);
+        assert!(m.pressure_mpa(x0 + 1e-5, Branch::Expansion) > 0.0);
         // The expansion branch does dip below zero (clamped) right after R_i.
         let e = m.constraint_pressure_mpa(m.root_contraction() + 1e-5)
             - m.offset_mpa(m.root_contraction() + 1e-5);
         assert!(e < 0.0);
+        // NaN pressure reads as zero pressure.
         assert_eq!(
             m.contraction(f32::NAN, Branch::Contraction),
-            m.root_contraction()
+            m.contraction(0.0, Branch::Contraction)
         );
     }
 

@@ -3,29 +3,37 @@
 //! On `thumbv7em-none-eabihf` the FPU has `VSQRT.F32` (one instruction, 14
 //! cycles), while `libm::sqrtf` is a software routine of 50–76 instructions
 //! and `f32::sqrt` is not available in `no_std` on stable Rust. So the square
-//! root is the one audited `unsafe` shim of this crate on that target, and
+//! root is the one audited `unsafe` shim of this crate on ARM hard-float
+//! targets (every `eabihf` FPU has `VSQRT.F32`), and
 //! `libm::sqrtf` everywhere else (host tests, other targets).
 
 /// Square root of a non-negative, finite `x` (callers clamp first).
 #[inline(always)]
 pub fn sqrt(x: f32) -> f32 {
-    #[cfg(all(target_arch = "arm", target_feature = "vfp2"))]
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     {
-        let y: f32;
-        // SAFETY: VSQRT.F32 reads one S register and writes one; it touches no
-        // memory, no stack and no flags other than the FPSCR exception bits.
+        let bits: u32;
+        // SAFETY: pure register arithmetic. The `sreg` operand class needs the
+        // unstable `vfp2` target feature on stable Rust, so the value travels
+        // through a core register and s0, which is saved and restored around
+        // the VSQRT.F32 (vpush/vpop use only this asm's own stack slot). Every
+        // `eabihf` target has an FPU with VSQRT.F32.
         #[allow(unsafe_code)]
         unsafe {
             core::arch::asm!(
-                "vsqrt.f32 {y}, {x}",
-                x = in(sreg) x,
-                y = lateout(sreg) y,
-                options(pure, nomem, nostack)
+                "vpush {{s0}}",
+                "vmov s0, {x}",
+                "vsqrt.f32 s0, s0",
+                "vmov {y}, s0",
+                "vpop {{s0}}",
+                x = in(reg) x.to_bits(),
+                y = lateout(reg) bits,
+                options(pure, nomem, preserves_flags)
             );
         }
-        y
+        f32::from_bits(bits)
     }
-    #[cfg(not(all(target_arch = "arm", target_feature = "vfp2")))]
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
     {
         libm::sqrtf(x)
     }
