@@ -13,8 +13,12 @@
 pub mod characterisation;
 pub mod plant;
 pub mod pneumatics;
+pub mod report;
 pub mod rig;
 pub mod sensors;
 
 pub use characterisation::{characterisation_run, write_samples_csv};
 pub use rig::{Rig, Sample, TrueState};
+pub mod bench;
+pub mod hal_mocks;
+pub mod scenarios;

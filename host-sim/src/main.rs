@@ -1,2 +1,133 @@
-//! Work in progress: see the open issues.
-fn main() {}
+//! The project's main job: every scenario on the built-in default muscle,
+//! with the firmware's controller (hysteresis-model feedforward + PI) and the
+//! PI-only baseline; prints a summary table and writes CSV traces and SVG
+//! plots.
+//!
+//! ```text
+//! cargo run --release -p host-sim [-- --out DIR] [--seed N]
+//! ```
+//! Default output folder: `target/host-sim-report/`.
+
+use host_sim::bench::{run, BenchConfig, Mode, Run};
+use host_sim::report;
+use host_sim::scenarios::Scenario;
+use std::path::PathBuf;
+
+/// The scenarios of the main job (longer than the test versions).
+fn scenarios(seed: u64) -> Vec<Scenario> {
+    vec![
+        Scenario::triangle(8, 4.0),
+        Scenario::random_step_load(90.0, 4.0, seed),
+        Scenario::cyclic_load_change(12, 4.0),
+    ]
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut out = PathBuf::from("target/host-sim-report");
+    let mut seed = 1u64;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--out" => out = PathBuf::from(args.next().ok_or("--out needs a folder")?),
+            "--seed" => seed = args.next().ok_or("--seed needs a number")?.parse()?,
+            "-h" | "--help" => {
+                println!("usage: host-sim [--out DIR] [--seed N]");
+                return Ok(());
+            }
+            other => return Err(format!("unknown argument {other:?} (try --help)").into()),
+        }
+    }
+    std::fs::create_dir_all(&out)?;
+    let cfg = BenchConfig::default_with_seed(seed);
+
+    println!("host-sim: firmware controller on the simulated McKibben rig (seed {seed})");
+    println!("[1/4] characterisation run (isotonic, 100-600 N) ...");
+    let samples = host_sim::characterisation_run(seed);
+    host_sim::write_samples_csv(&out.join("characterisation.csv"), &samples)?;
+    report::plot_characterisation(&out.join("characterisation_loops.svg"), &samples)?;
+    println!("      {} samples", samples.len());
+
+    let mut results: Vec<(Scenario, Run, Run)> = Vec::new();
+    let list = scenarios(seed);
+    for (i, sc) in list.into_iter().enumerate() {
+        println!("[{}/4] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
+        let pi = run(&sc, Mode::PiOnly, &cfg);
+        let ff = run(&sc, Mode::FeedforwardPi, &cfg);
+        for r in [&pi, &ff] {
+            let name = format!(
+                "{}_{}.csv",
+                sc.name,
+                if r.mode == Mode::PiOnly {
+                    "pi"
+                } else {
+                    "ff_pi"
+                }
+            );
+            // 100 Hz in the CSV (every 10th control period) keeps the files small.
+            report::write_trace_csv(&out.join(name), &r.trace, 10)?;
+        }
+        report::plot_scenario(&out.join(format!("{}.svg", sc.name)), sc.title, &ff, &pi)?;
+        report::plot_loops(
+            &out.join(format!("{}_loops.svg", sc.name)),
+            &format!("{}: pressure-contraction, FF + PI (colour: load)", sc.name),
+            &ff,
+            cfg.warmup_s,
+        )?;
+        results.push((sc, pi, ff));
+    }
+
+    println!();
+    println!("| scenario | controller | RMS error | max error | load steps detected (samples) | max FF jump at switch (MPa) | max chamber change in 10 ms at switch (MPa) |");
+    println!("|---|---|---|---|---|---|---|");
+    for (sc, pi, ff) in &results {
+        for r in [pi, ff] {
+            let m = &r.metrics;
+            let det: Vec<usize> = m
+                .load_steps
+                .iter()
+                .filter_map(|l| l.detected_after_samples)
+                .collect();
+            let det = if m.load_steps.is_empty() {
+                "no steps".to_string()
+            } else {
+                format!(
+                    "{}/{}, {}-{}",
+                    det.len(),
+                    m.load_steps.len(),
+                    det.iter().min().copied().unwrap_or(0),
+                    det.iter().max().copied().unwrap_or(0)
+                )
+            };
+            let ffj = m
+                .switches
+                .iter()
+                .map(|s| s.feedforward_jump_mpa.abs())
+                .fold(0.0, f64::max);
+            let chj = m
+                .switches
+                .iter()
+                .map(|s| s.chamber_jump_mpa)
+                .fold(0.0, f64::max);
+            println!(
+                "| {} | {} | {:.4} | {:.4} | {} | {:.4} | {:.4} |",
+                sc.name,
+                r.mode.label(),
+                m.rms_error,
+                m.max_error,
+                det,
+                ffj,
+                chj
+            );
+        }
+        println!(
+            "| {} | FF+PI / PI | {:.0} % | {:.0} % | | | |",
+            sc.name,
+            100.0 * ff.metrics.rms_error / pi.metrics.rms_error,
+            100.0 * ff.metrics.max_error / pi.metrics.max_error
+        );
+    }
+    println!();
+    println!("Errors are reference minus true contraction (fraction of rest length) after a {:.0} s warm-up.", cfg.warmup_s);
+    println!("Output written to {}/", out.display());
+    Ok(())
+}

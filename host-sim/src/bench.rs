@@ -1,0 +1,385 @@
+//! The bench: the firmware's [`Controller`] driving the simulated rig through
+//! the mock HALs, one control period at a time, with a trace of everything
+//! and the metrics the scenario tests assert on.
+
+use crate::hal_mocks::{
+    valve_opening, InjectedError, SharedRig, SimContraction, SimLoad, SimPressure, SimPwm,
+    ValveKind,
+};
+use crate::rig::Rig;
+use crate::scenarios::Scenario;
+use firmware::controller::{Controller, ControllerConfig, Io, ValveCommand};
+use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
+use pam_core::{Branch, Coeffs, CriticalPoints, Params, Point};
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
+
+/// Which controller the bench runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// The firmware's controller with pam-core's hysteresis model as
+    /// feedforward plus PI: the project's controller.
+    FeedforwardPi,
+    /// PI feedback alone, around a fixed operating pressure: the firmware's
+    /// controller with [`pi_only_params`] instead of the muscle's model (see
+    /// there), and a wider integrator limit so that PI can span the
+    /// pressure range.
+    PiOnly,
+}
+
+impl Mode {
+    /// Short label.
+    pub fn label(self) -> &'static str {
+        match self {
+            Mode::FeedforwardPi => "FF+PI",
+            Mode::PiOnly => "PI",
+        }
+    }
+}
+
+/// Parameters that turn the firmware's feedforward into a near-constant
+/// bias: the controller has no switch to disable the feedforward, so the PI
+/// baseline runs it on a "model" whose stroke is ±0.9 (far outside the
+/// muscle's), whose curve is near-linear through the middle of the pressure
+/// range, with no load dependence and no hysteresis. Over the scenarios'
+/// 3–16 % contraction it gives 0.18–0.21 MPa: PI around a mid-range
+/// operating point, with every load and branch effect left to feedback.
+pub fn pi_only_params() -> Params {
+    Params {
+        min_load_n: 100.0,
+        max_load_n: 600.0,
+        load_step_n: 100.0,
+        points: CriticalPoints {
+            root_contraction: -0.9,
+            max_contraction: 0.9,
+            max_pressure_mpa: 0.5,
+            // On (x + 0.9)(0.1 x² + 0.1968): one real root, monotone.
+            tangency: Point {
+                contraction: -0.3,
+                pressure_mpa: 0.1235,
+            },
+            inflection: Point {
+                contraction: 0.3,
+                pressure_mpa: 0.2470,
+            },
+        },
+        root_regression_per_step: 0.0,
+        max_regression_per_step: 0.0,
+        c_growth_per_step: 0.0,
+        ellipse_height_mpa: 0.0,
+    }
+}
+
+/// Settings of one bench run.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchConfig {
+    /// The controller's model for [`Mode::FeedforwardPi`].
+    pub params: Params,
+    /// Controller settings (gains, rate, safety) for [`Mode::FeedforwardPi`];
+    /// [`Mode::PiOnly`] uses the same gains with `integral_limit_mpa` raised
+    /// to [`PI_ONLY_INTEGRAL_LIMIT_MPA`].
+    pub controller: ControllerConfig,
+    /// Seed of the sensor noise.
+    pub seed: u64,
+    /// Time excluded from the error statistics at the start (the muscle
+    /// starts empty), s.
+    pub warmup_s: f64,
+}
+
+/// Integrator limit of the PI-only baseline, MPa: enough to span
+/// 0.0–0.5 MPa around its 0.18–0.21 MPa bias.
+pub const PI_ONLY_INTEGRAL_LIMIT_MPA: f32 = 0.3;
+
+impl BenchConfig {
+    /// pam-core's default model, the firmware's default configuration,
+    /// 3 s warm-up. The valves are an inlet/exhaust on/off pair
+    /// ([`ValveKind::PAIR`]) driven by the firmware's `ValvePair`.
+    pub fn default_with_seed(seed: u64) -> BenchConfig {
+        BenchConfig {
+            params: Params::DEFAULT,
+            controller: ControllerConfig::DEFAULT,
+            seed,
+            warmup_s: 3.0,
+        }
+    }
+}
+
+/// One control period of a run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct TraceRow {
+    /// Time, s.
+    pub t_s: f64,
+    /// Reference contraction.
+    pub reference: f64,
+    /// True contraction.
+    pub contraction: f64,
+    /// True chamber pressure, MPa.
+    pub pressure_mpa: f64,
+    /// Pressure set-point of the inner loop, MPa.
+    pub pressure_cmd_mpa: f64,
+    /// Feedforward pressure, MPa.
+    pub feedforward_mpa: f64,
+    /// True load, N.
+    pub load_n: f64,
+    /// Load of the controller's active model, N.
+    pub model_load_n: f64,
+    /// +1 contraction branch, −1 expansion branch.
+    pub branch: i8,
+    /// Valve flow command in `[-1, 1]` (0 in a safe state).
+    pub flow_cmd: f64,
+    /// 1 while the controller is in a fault.
+    pub fault: u8,
+}
+
+/// How one load step was handled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoadStepResult {
+    /// Time of the step, s.
+    pub t_s: f64,
+    /// Load before, N.
+    pub from_n: f64,
+    /// Load after, N.
+    pub to_n: f64,
+    /// Control periods from the step to the tracker's switch to a model
+    /// within 20 N of the new load; `None` if it never did before the next step.
+    pub detected_after_samples: Option<usize>,
+}
+
+/// What happened at one branch switch of the tracker.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SwitchResult {
+    /// Time, s.
+    pub t_s: f64,
+    /// New branch.
+    pub to: Branch,
+    /// Feedforward pressure change across the switching period, MPa: the
+    /// jump the paper's model makes (the offset changes sign).
+    pub feedforward_jump_mpa: f64,
+    /// Pressure set-point change across the switching period, MPa.
+    pub command_jump_mpa: f64,
+    /// Largest change of the true chamber pressure over any 10 ms within
+    /// ±50 ms of the switch, MPa.
+    pub chamber_jump_mpa: f64,
+}
+
+/// Statistics of a run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Metrics {
+    /// RMS of reference − true contraction after the warm-up.
+    pub rms_error: f64,
+    /// Maximum |reference − true contraction| after the warm-up.
+    pub max_error: f64,
+    /// Load steps and their detection.
+    pub load_steps: Vec<LoadStepResult>,
+    /// Branch switches.
+    pub switches: Vec<SwitchResult>,
+    /// Control periods spent in a fault.
+    pub fault_samples: usize,
+    /// Largest |model load − true load| at the end of each load plateau, N.
+    pub worst_model_load_error_n: f64,
+}
+
+/// A finished run.
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// The scenario's name.
+    pub scenario: &'static str,
+    /// The controller variant.
+    pub mode: Mode,
+    /// One row per control period.
+    pub trace: Vec<TraceRow>,
+    /// Statistics.
+    pub metrics: Metrics,
+}
+
+/// Run `scenario` on the reference rig with the firmware's controller.
+///
+/// # Panics
+/// If the firmware refuses the configuration or the parameters (a bench
+/// set-up error, not a run-time condition).
+pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
+    let load0 = scenario.load_at(0.0);
+    let rig: SharedRig = Rc::new(RefCell::new(Rig::reference(load0, cfg.seed)));
+    let (params, ctl_cfg) = match mode {
+        Mode::FeedforwardPi => (cfg.params, cfg.controller),
+        Mode::PiOnly => {
+            let mut c = cfg.controller;
+            c.integral_limit_mpa = PI_ONLY_INTEGRAL_LIMIT_MPA;
+            (pi_only_params(), c)
+        }
+    };
+    let coeffs = Coeffs::new(params).expect("bench parameters");
+    let mut ctl = Controller::new(coeffs, ctl_cfg, load0 as f32).expect("controller config");
+    let no_error: InjectedError = Rc::new(Cell::new(None));
+    let inlet = SimPwm::new();
+    let exhaust = SimPwm::new();
+    let mut io = Io {
+        pressure: SimPressure {
+            rig: rig.clone(),
+            calibration: PressureCalibration::ADC12_0_1MPA,
+            error: no_error.clone(),
+        },
+        contraction: SimContraction {
+            rig: rig.clone(),
+            error: no_error.clone(),
+        },
+        load: SimLoad {
+            rig: rig.clone(),
+            error: no_error,
+        },
+        valve: ValvePair::new(inlet.clone(), exhaust.clone(), ValvePairConfig::DEFAULT)
+            .expect("valve config"),
+    };
+    let dt = f64::from(ctl_cfg.dt_s);
+    let n = (scenario.duration_s / dt).round() as usize;
+    let mut trace = Vec::with_capacity(n);
+    let mut switch_idx = Vec::new();
+    let mut load_switch_idx: Vec<(usize, f32)> = Vec::new();
+    for k in 0..n {
+        let t = k as f64 * dt;
+        let load = scenario.load_at(t);
+        rig.borrow_mut().set_load_n(load);
+        let reference = scenario.reference_at(t);
+        let step = ctl.step(&mut io, reference as f32);
+        if step.tracker.branch_switch.is_some() {
+            switch_idx.push(k);
+        }
+        if let Some(s) = step.tracker.load_switch {
+            load_switch_idx.push((k, s.to_n));
+        }
+        let opening = valve_opening(ValveKind::PAIR, inlet.fraction(), exhaust.fraction());
+        let s = rig.borrow().true_state();
+        trace.push(TraceRow {
+            t_s: t,
+            reference,
+            contraction: s.contraction,
+            pressure_mpa: s.pressure_mpa,
+            pressure_cmd_mpa: f64::from(step.pressure_cmd_mpa),
+            feedforward_mpa: f64::from(step.feedforward_mpa),
+            load_n: s.load_n,
+            model_load_n: f64::from(ctl.tracker().load_n()),
+            branch: match step.branch {
+                Branch::Contraction => 1,
+                Branch::Expansion => -1,
+            },
+            flow_cmd: match step.command {
+                ValveCommand::Flow(f) => f64::from(f),
+                ValveCommand::Safe(_) => 0.0,
+            },
+            fault: u8::from(step.fault.is_some()),
+        });
+        let mut r = rig.borrow_mut();
+        r.opening = opening;
+        r.advance(dt);
+    }
+    let metrics = metrics(
+        scenario,
+        &trace,
+        &switch_idx,
+        &load_switch_idx,
+        cfg.warmup_s,
+        dt,
+    );
+    Run {
+        scenario: scenario.name,
+        mode,
+        trace,
+        metrics,
+    }
+}
+
+fn metrics(
+    scenario: &Scenario,
+    trace: &[TraceRow],
+    switch_idx: &[usize],
+    load_switch_idx: &[(usize, f32)],
+    warmup_s: f64,
+    dt: f64,
+) -> Metrics {
+    let after: Vec<f64> = trace
+        .iter()
+        .filter(|r| r.t_s >= warmup_s)
+        .map(|r| r.reference - r.contraction)
+        .collect();
+    let rms_error = (after.iter().map(|e| e * e).sum::<f64>() / after.len().max(1) as f64).sqrt();
+    let max_error = after.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+
+    let mut load_steps = Vec::new();
+    let mut worst_model_load_error_n = 0.0f64;
+    for (i, w) in scenario.loads.windows(2).enumerate() {
+        let (t_step, to_n) = w[1];
+        let k_step = (t_step / dt).round() as usize;
+        let k_end = scenario
+            .loads
+            .get(i + 2)
+            .map(|l| (l.0 / dt).round() as usize)
+            .unwrap_or(trace.len());
+        let detected_after_samples = load_switch_idx
+            .iter()
+            .find(|(k, to)| *k >= k_step && *k < k_end && (f64::from(*to) - to_n).abs() <= 20.0)
+            .map(|(k, _)| k - k_step);
+        if let Some(last) = trace.get(k_end.saturating_sub(1)) {
+            worst_model_load_error_n =
+                worst_model_load_error_n.max((last.model_load_n - last.load_n).abs());
+        }
+        load_steps.push(LoadStepResult {
+            t_s: t_step,
+            from_n: w[0].1,
+            to_n,
+            detected_after_samples,
+        });
+    }
+
+    let window = (0.05 / dt).round() as usize;
+    let span = (0.01 / dt).round().max(1.0) as usize;
+    let switches = switch_idx
+        .iter()
+        .filter(|&&k| k >= 1 && k + window < trace.len() && k >= window)
+        .map(|&k| {
+            let (before, at) = (&trace[k - 1], &trace[k]);
+            let mut chamber_jump_mpa = 0.0f64;
+            for j in (k - window)..(k + window - span) {
+                chamber_jump_mpa = chamber_jump_mpa
+                    .max((trace[j + span].pressure_mpa - trace[j].pressure_mpa).abs());
+            }
+            SwitchResult {
+                t_s: at.t_s,
+                to: if at.branch > 0 {
+                    Branch::Contraction
+                } else {
+                    Branch::Expansion
+                },
+                feedforward_jump_mpa: at.feedforward_mpa - before.feedforward_mpa,
+                command_jump_mpa: at.pressure_cmd_mpa - before.pressure_cmd_mpa,
+                chamber_jump_mpa,
+            }
+        })
+        .collect();
+    Metrics {
+        rms_error,
+        max_error,
+        load_steps,
+        switches,
+        fault_samples: trace.iter().filter(|r| r.fault != 0).count(),
+        worst_model_load_error_n,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pi_only_params_are_accepted_and_nearly_flat() {
+        let c = Coeffs::new(pi_only_params()).unwrap();
+        for load in [100.0, 600.0] {
+            let m = c.load_model(load).unwrap();
+            for x in [0.03f32, 0.1, 0.16] {
+                for br in [Branch::Contraction, Branch::Expansion] {
+                    let p = m.pressure_mpa(x, br);
+                    assert!(p > 0.17 && p < 0.22, "{load} N {x}: {p}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,105 @@
+//! The paper's scenarios (Figs. 6–8), shortened, with the firmware's
+//! controller on the simulated rig. Bounds are set from measured runs with
+//! margin (see host-sim/README.md for the full-length numbers).
+
+use host_sim::bench::{run, BenchConfig, Mode, Run};
+use host_sim::scenarios::Scenario;
+
+/// The tracker's debounce: a load step cannot be detected in fewer samples.
+const DEBOUNCE: usize = firmware::ControllerConfig::DEFAULT
+    .tracker
+    .load_debounce_samples as usize;
+
+fn both(sc: &Scenario) -> (Run, Run) {
+    let cfg = BenchConfig::default_with_seed(11);
+    (
+        run(sc, Mode::PiOnly, &cfg),
+        run(sc, Mode::FeedforwardPi, &cfg),
+    )
+}
+
+fn report(name: &str, pi: &Run, ff: &Run) {
+    eprintln!(
+        "{name}: PI rms {:.4} max {:.4} | FF+PI rms {:.4} max {:.4} | ratio {:.2}",
+        pi.metrics.rms_error,
+        pi.metrics.max_error,
+        ff.metrics.rms_error,
+        ff.metrics.max_error,
+        ff.metrics.rms_error / pi.metrics.rms_error
+    );
+}
+
+#[test]
+fn triangle_fig6_tracks_and_feedforward_helps() {
+    let sc = Scenario::triangle(3, 4.0);
+    let (pi, ff) = both(&sc);
+    report("triangle", &pi, &ff);
+    for r in [&pi, &ff] {
+        assert_eq!(r.metrics.fault_samples, 0, "{:?}", r.mode);
+    }
+    // Closed-loop tracking bounds (contraction, fraction of rest length).
+    assert!(ff.metrics.rms_error < 0.005, "{}", ff.metrics.rms_error);
+    assert!(ff.metrics.max_error < 0.02, "{}", ff.metrics.max_error);
+    // Measured 0.69 with pam-core's hand-set default model: the goal of
+    // 0.5 is NOT met on the triangle (see README); this guards the gain.
+    assert!(
+        ff.metrics.rms_error < 0.8 * pi.metrics.rms_error,
+        "FF+PI {} vs PI {}",
+        ff.metrics.rms_error,
+        pi.metrics.rms_error
+    );
+    // Branch switches at each reversal; the paper model's feedforward jumps
+    // by up to 2·be = 0.04 MPa there, the chamber (valve-flow limited)
+    // changes by less within 10 ms.
+    assert!(
+        ff.metrics.switches.len() >= 5,
+        "{}",
+        ff.metrics.switches.len()
+    );
+    for s in &ff.metrics.switches {
+        assert!(s.feedforward_jump_mpa.abs() <= 0.041, "{s:?}");
+        assert!(s.chamber_jump_mpa <= 0.035, "{s:?}");
+    }
+}
+
+#[test]
+fn random_step_load_fig7_is_detected_and_followed() {
+    let sc = Scenario::random_step_load(40.0, 4.0, 7);
+    let (pi, ff) = both(&sc);
+    report("random_step_load", &pi, &ff);
+    assert!(ff.metrics.load_steps.len() >= 6);
+    for r in [&pi, &ff] {
+        assert_eq!(r.metrics.fault_samples, 0, "{:?}", r.mode);
+        for step in &r.metrics.load_steps {
+            // Detected within the debounce count of the step.
+            let k = step.detected_after_samples.expect("load step not detected");
+            assert!(k <= DEBOUNCE, "{step:?}");
+        }
+    }
+    // The active model follows the load (to the load cell's noise).
+    assert!(ff.metrics.worst_model_load_error_n < 10.0);
+    // The feedforward at least halves the RMS tracking error here.
+    assert!(
+        ff.metrics.rms_error <= 0.5 * pi.metrics.rms_error,
+        "FF+PI {} vs PI {}",
+        ff.metrics.rms_error,
+        pi.metrics.rms_error
+    );
+    assert!(ff.metrics.max_error < 0.035, "{}", ff.metrics.max_error);
+}
+
+#[test]
+fn cyclic_load_change_fig8_adapts() {
+    let sc = Scenario::cyclic_load_change(5, 4.0);
+    let (pi, ff) = both(&sc);
+    report("cyclic_load_change", &pi, &ff);
+    assert_eq!(ff.metrics.fault_samples, 0);
+    assert_eq!(ff.metrics.load_steps.len(), 4);
+    for step in &ff.metrics.load_steps {
+        assert!(step.detected_after_samples.expect("detected") <= DEBOUNCE);
+    }
+    assert!(ff.metrics.worst_model_load_error_n < 10.0);
+    assert!(ff.metrics.rms_error < 0.006, "{}", ff.metrics.rms_error);
+    assert!(ff.metrics.max_error < 0.03, "{}", ff.metrics.max_error);
+    assert!(ff.metrics.rms_error < pi.metrics.rms_error);
+}
