@@ -1,17 +1,8 @@
-//! # firmware
+#![doc = include_str!("../README.md")]
 //!
-//! Position control of a pneumatic artificial muscle with pam-core's
-//! hysteresis model as feedforward, as a `no_std` library generic over
-//! embedded-hal-style traits (so the host simulator runs the very same
-//! code), plus the Cortex-M4F image (`src/main.rs`, features `chip` and
-//! `qemu`).
+//! ## Example
 //!
-//! * [`hal`]: sensor and valve traits, the proportional valve and the
-//!   inlet/exhaust pair drivers over `embedded_hal::pwm::SetDutyCycle`.
-//! * [`controller`]: [`Controller`], the feedforward + PI + inner pressure
-//!   loop, and the safety monitor ([`Fault`]).
-//! * [`plant`]: a `no_std` simulated muscle and simulated sensors/PWM.
-//! * [`scenario`]: the triangle-trajectory run-pass test the QEMU image runs.
+//! The controller on the simulated bus: contract, then a sensor fault.
 //!
 //! ```
 //! use firmware::controller::{Controller, ControllerConfig, Io, ValveCommand};
