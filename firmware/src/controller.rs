@@ -852,6 +852,86 @@ mod tests {
         }
     }
 
+    /// A valve whose writes fail while `fail` is set; records the last call.
+    struct FlakyValve {
+        fail: bool,
+        last: Option<ValveCommand>,
+    }
+    #[derive(Debug)]
+    struct Refused;
+    impl embedded_hal::pwm::Error for Refused {
+        fn kind(&self) -> embedded_hal::pwm::ErrorKind {
+            embedded_hal::pwm::ErrorKind::Other
+        }
+    }
+    impl embedded_hal::pwm::ErrorType for FlakyValve {
+        type Error = Refused;
+    }
+    impl Valve for FlakyValve {
+        fn set_flow(&mut self, command: f32) -> Result<(), Refused> {
+            self.last = Some(ValveCommand::Flow(command));
+            if self.fail {
+                Err(Refused)
+            } else {
+                Ok(())
+            }
+        }
+        fn set_safe(&mut self, state: SafeState) -> Result<(), Refused> {
+            self.last = Some(ValveCommand::Safe(state));
+            if self.fail {
+                Err(Refused)
+            } else {
+                Ok(())
+            }
+        }
+    }
+
+    #[test]
+    fn a_refused_valve_write_faults_and_retries_the_safe_state() {
+        use crate::plant::{SimBus, SimContraction, SimLoad, SimPressure};
+        let bus = SimBus::new();
+        let cal = crate::hal::PressureCalibration::ADC12_0_1MPA;
+        let mut io = Io {
+            pressure: SimPressure {
+                bus: &bus,
+                calibration: cal,
+            },
+            contraction: SimContraction(&bus),
+            load: SimLoad(&bus),
+            valve: FlakyValve {
+                fail: false,
+                last: None,
+            },
+        };
+        let mut c = controller();
+        let mut k = 0u16;
+        let mut set = |bus: &SimBus| {
+            k += 1;
+            bus.pressure_counts
+                .set(cal.to_counts(0.1 + f32::from(k % 3) * 1e-3));
+            bus.contraction.set(0.05 + f32::from(k % 2) * 1e-4);
+            bus.load_n.set(200.0 + f32::from(k % 2));
+        };
+        set(&bus);
+        let s = c.step(&mut io, 0.1);
+        assert_eq!(s.fault, None);
+        assert!(matches!(io.valve.last, Some(ValveCommand::Flow(f)) if f > 0.0));
+        io.valve.fail = true;
+        set(&bus);
+        let s = c.step(&mut io, 0.1);
+        assert_eq!(s.new_fault, Some(Fault::Valve));
+        assert_eq!(io.valve.last, Some(ValveCommand::Safe(SafeState::Exhaust)));
+        // Writes accepted again: recovery after the good run.
+        io.valve.fail = false;
+        let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+        for _ in 1..n {
+            set(&bus);
+            assert_eq!(c.step(&mut io, 0.1).fault, Some(Fault::Valve));
+        }
+        set(&bus);
+        assert!(c.step(&mut io, 0.1).recovered);
+    }
+
     #[test]
     fn non_finite_set_point_faults() {
         let mut c = controller();
