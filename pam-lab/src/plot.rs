@@ -1,1 +1,220 @@
-//! Plots.
+//! Plots (PNG, via `plotters`), written atomically.
+//!
+//! * [`fit_plot`]: pressure against contraction, data and model per load, as
+//!   the paper's Fig. 5 (held-out samples dark, training samples light).
+//! * [`simulate_plot`]: measured and predicted contraction over time, and the
+//!   error.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{anyhow, Result};
+use pam_core::{Branch, Coeffs};
+use plotters::prelude::*;
+
+use crate::data::Record;
+use crate::simulate::SimSample;
+use crate::split::Split;
+
+const SIZE: (u32, u32) = (1200, 800);
+/// Most points drawn per series (larger records are thinned evenly).
+const MAX_POINTS: usize = 20_000;
+
+fn e<E: std::fmt::Display>(err: E) -> anyhow::Error {
+    anyhow!("plot: {err}")
+}
+
+fn color(k: usize) -> RGBColor {
+    const C: [RGBColor; 8] = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(255, 127, 14),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(23, 190, 207),
+    ];
+    C[k % C.len()]
+}
+
+/// Data against model per load bin (up to 8 bins, the most sampled).
+pub fn fit_plot(
+    path: &Path,
+    record: &Record,
+    split: &Split,
+    heldout: &[bool],
+    coeffs: &Coeffs,
+    load_bin_n: f64,
+) -> Result<()> {
+    let samples = &record.samples;
+    let mut counts: BTreeMap<i64, usize> = BTreeMap::new();
+    for (i, s) in samples.iter().enumerate() {
+        if split.branch[i].is_some() {
+            *counts
+                .entry((s.load_n / load_bin_n).round() as i64)
+                .or_default() += 1;
+        }
+    }
+    let mut bins: Vec<(i64, usize)> = counts.into_iter().collect();
+    bins.sort_by(|a, b| b.1.cmp(&a.1));
+    bins.truncate(8);
+    bins.sort();
+    let keys: Vec<i64> = bins.iter().map(|b| b.0).collect();
+    let thin = (samples.len() / MAX_POINTS).max(1);
+    let pmax = f64::from(coeffs.params().points.max_pressure_mpa);
+    let (xmin, xmax) = samples.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
+        (a.min(s.contraction), b.max(s.contraction))
+    });
+    let title = format!(
+        "{}: dots data (dark: held out), lines model (thick: contraction, thin: expansion)",
+        record.source
+    );
+    crate::atomic::write_via_path(path, |tmp| {
+        let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(e)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(15)
+            .x_label_area_size(50)
+            .y_label_area_size(70)
+            .build_cartesian_2d(
+                (xmin - 0.005)..(xmax + 0.005),
+                (-0.02 * pmax)..(1.05 * pmax),
+            )
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("contraction (fraction of rest length)")
+            .y_desc("pressure (MPa)")
+            .draw()
+            .map_err(e)?;
+        for (k, key) in keys.iter().enumerate() {
+            let col = color(k);
+            let load = *key as f64 * load_bin_n;
+            let pts = |held: bool| {
+                samples
+                    .iter()
+                    .enumerate()
+                    .step_by(thin)
+                    .filter(move |(i, s)| {
+                        split.branch[*i].is_some()
+                            && heldout[*i] == held
+                            && (s.load_n / load_bin_n).round() as i64 == *key
+                    })
+                    .map(move |(_, s)| {
+                        Circle::new(
+                            (s.contraction, s.pressure_mpa),
+                            1,
+                            col.mix(if held { 0.8 } else { 0.15 }).filled(),
+                        )
+                    })
+            };
+            chart.draw_series(pts(false)).map_err(e)?;
+            chart
+                .draw_series(pts(true))
+                .map_err(e)?
+                .label(format!("{load:.0} N"))
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(3))
+                });
+            let m = coeffs.load_model_clamped(load as f32);
+            for (br, width) in [(Branch::Contraction, 3), (Branch::Expansion, 1)] {
+                let (r, rx) = (m.root_contraction(), m.max_contraction());
+                let curve = (0..=300).map(|j| {
+                    let x = r + (rx - r) * j as f32 / 300.0;
+                    (f64::from(x), f64::from(m.pressure_mpa(x, br)))
+                });
+                chart
+                    .draw_series(LineSeries::new(curve, col.stroke_width(width)))
+                    .map_err(e)?;
+            }
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()
+            .map_err(e)?;
+        root.present().map_err(e)?;
+        Ok(())
+    })
+}
+
+/// Measured and predicted contraction over time, and the error.
+pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()> {
+    if sim.is_empty() {
+        return Err(anyhow!("plot: nothing to plot"));
+    }
+    let thin = (sim.len() / MAX_POINTS).max(1);
+    let t0 = sim[0].t_s;
+    let t1 = sim[sim.len() - 1].t_s.max(t0 + 1e-9);
+    let (ymin, ymax) = sim.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
+        (
+            a.min(s.measured_contraction).min(s.predicted_contraction),
+            b.max(s.measured_contraction).max(s.predicted_contraction),
+        )
+    });
+    let emax = sim.iter().map(|s| s.error().abs()).fold(1e-6, f64::max);
+    crate::atomic::write_via_path(path, |tmp| {
+        let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(e)?;
+        let (top, bottom) = root.split_vertically(520);
+        let mut c1 = ChartBuilder::on(&top)
+            .caption(
+                format!("{source}: simulated from measured pressure and load"),
+                ("sans-serif", 22),
+            )
+            .margin(15)
+            .x_label_area_size(35)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, (ymin - 0.005)..(ymax + 0.005))
+            .map_err(e)?;
+        c1.configure_mesh()
+            .y_desc("contraction")
+            .draw()
+            .map_err(e)?;
+        c1.draw_series(LineSeries::new(
+            sim.iter()
+                .step_by(thin)
+                .map(|s| (s.t_s, s.measured_contraction)),
+            BLACK.mix(0.6),
+        ))
+        .map_err(e)?
+        .label("measured")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        c1.draw_series(LineSeries::new(
+            sim.iter()
+                .step_by(thin)
+                .map(|s| (s.t_s, s.predicted_contraction)),
+            color(1),
+        ))
+        .map_err(e)?
+        .label("model")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color(1)));
+        c1.configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(e)?;
+        let mut c2 = ChartBuilder::on(&bottom)
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, (-1.05 * emax)..(1.05 * emax))
+            .map_err(e)?;
+        c2.configure_mesh()
+            .x_desc("time (s)")
+            .y_desc("model − measured")
+            .draw()
+            .map_err(e)?;
+        c2.draw_series(LineSeries::new(
+            sim.iter().step_by(thin).map(|s| (s.t_s, s.error())),
+            color(0),
+        ))
+        .map_err(e)?;
+        root.present().map_err(e)?;
+        Ok(())
+    })
+}

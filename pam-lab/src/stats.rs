@@ -9,12 +9,12 @@
 use std::collections::{BTreeMap, HashMap};
 
 use pam_core::{Branch, Coeffs, LoadModel};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::data::Sample;
 
 /// Error statistics of one group of samples.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ErrorStats {
     /// Number of samples.
     pub samples: usize,
@@ -58,7 +58,7 @@ impl Acc {
 }
 
 /// One row of an [`ErrorTable`].
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GroupStats {
     /// Centre of the load bin, N.
     pub load_n: f64,
@@ -70,7 +70,7 @@ pub struct GroupStats {
 }
 
 /// Errors per load bin and branch, plus the total.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ErrorTable {
     /// Width of the load bins, N.
     pub load_bin_n: f64,
