@@ -8,9 +8,9 @@ use crate::hal_mocks::{
 };
 use crate::rig::Rig;
 use crate::scenarios::Scenario;
-use firmware::controller::{Controller, ControllerConfig, Io, ValveCommand};
+use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, ValveCommand};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
-use pam_core::{Branch, Coeffs, CriticalPoints, Params, Point};
+use pam_core::{Branch, Coeffs, Params};
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
@@ -20,10 +20,11 @@ pub enum Mode {
     /// The firmware's controller with pam-core's hysteresis model as
     /// feedforward plus PI: the project's controller.
     FeedforwardPi,
-    /// PI feedback alone, around a fixed operating pressure: the firmware's
-    /// controller with [`pi_only_params`] instead of the muscle's model (see
-    /// there), and a wider integrator limit so that PI can span the
-    /// pressure range.
+    /// PI feedback alone: the same controller, model and gains with
+    /// [`Feedforward::Off`], and the integrator limit raised to
+    /// [`PI_ONLY_INTEGRAL_LIMIT_MPA`] so that PI can reach the whole
+    /// pressure range (with the default 0.1 MPa it could not hold the
+    /// muscle above 0.1 MPa + `kp`·error).
     PiOnly,
 }
 
@@ -37,47 +38,14 @@ impl Mode {
     }
 }
 
-/// Parameters that turn the firmware's feedforward into a near-constant
-/// bias: the controller has no switch to disable the feedforward, so the PI
-/// baseline runs it on a "model" whose stroke is ±0.9 (far outside the
-/// muscle's), whose curve is near-linear through the middle of the pressure
-/// range, with no load dependence and no hysteresis. Over the scenarios'
-/// 3–16 % contraction it gives 0.18–0.21 MPa: PI around a mid-range
-/// operating point, with every load and branch effect left to feedback.
-pub fn pi_only_params() -> Params {
-    Params {
-        min_load_n: 100.0,
-        max_load_n: 600.0,
-        load_step_n: 100.0,
-        points: CriticalPoints {
-            root_contraction: -0.9,
-            max_contraction: 0.9,
-            max_pressure_mpa: 0.5,
-            // On (x + 0.9)(0.1 x² + 0.1968): one real root, monotone.
-            tangency: Point {
-                contraction: -0.3,
-                pressure_mpa: 0.1235,
-            },
-            inflection: Point {
-                contraction: 0.3,
-                pressure_mpa: 0.2470,
-            },
-        },
-        root_regression_per_step: 0.0,
-        max_regression_per_step: 0.0,
-        c_growth_per_step: 0.0,
-        ellipse_height_mpa: 0.0,
-    }
-}
-
 /// Settings of one bench run.
 #[derive(Clone, Copy, Debug)]
 pub struct BenchConfig {
     /// The controller's model for [`Mode::FeedforwardPi`].
     pub params: Params,
     /// Controller settings (gains, rate, safety) for [`Mode::FeedforwardPi`];
-    /// [`Mode::PiOnly`] uses the same gains with `integral_limit_mpa` raised
-    /// to [`PI_ONLY_INTEGRAL_LIMIT_MPA`].
+    /// [`Mode::PiOnly`] uses the same gains with [`Feedforward::Off`] and
+    /// `integral_limit_mpa` raised to [`PI_ONLY_INTEGRAL_LIMIT_MPA`].
     pub controller: ControllerConfig,
     /// Seed of the sensor noise.
     pub seed: u64,
@@ -86,9 +54,10 @@ pub struct BenchConfig {
     pub warmup_s: f64,
 }
 
-/// Integrator limit of the PI-only baseline, MPa: enough to span
-/// 0.0–0.5 MPa around its 0.18–0.21 MPa bias.
-pub const PI_ONLY_INTEGRAL_LIMIT_MPA: f32 = 0.3;
+/// Integrator limit of the PI-only baseline, MPa: `Pmax` of
+/// `Params::DEFAULT`, so that the integral alone can hold any pressure the
+/// model covers (the command is clamped to `[0, Pmax]` anyway).
+pub const PI_ONLY_INTEGRAL_LIMIT_MPA: f32 = 0.5;
 
 impl BenchConfig {
     /// pam-core's default model, the firmware's default configuration,
@@ -192,6 +161,19 @@ pub struct Run {
     pub metrics: Metrics,
 }
 
+/// The controller configuration `mode` runs with.
+pub fn controller_config(mode: Mode, cfg: &BenchConfig) -> ControllerConfig {
+    let mut c = cfg.controller;
+    match mode {
+        Mode::FeedforwardPi => {}
+        Mode::PiOnly => {
+            c.feedforward = Feedforward::Off;
+            c.integral_limit_mpa = PI_ONLY_INTEGRAL_LIMIT_MPA;
+        }
+    }
+    c
+}
+
 /// Run `scenario` on the reference rig with the firmware's controller.
 ///
 /// # Panics
@@ -200,15 +182,8 @@ pub struct Run {
 pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
     let load0 = scenario.load_at(0.0);
     let rig: SharedRig = Rc::new(RefCell::new(Rig::reference(load0, cfg.seed)));
-    let (params, ctl_cfg) = match mode {
-        Mode::FeedforwardPi => (cfg.params, cfg.controller),
-        Mode::PiOnly => {
-            let mut c = cfg.controller;
-            c.integral_limit_mpa = PI_ONLY_INTEGRAL_LIMIT_MPA;
-            (pi_only_params(), c)
-        }
-    };
-    let coeffs = Coeffs::new(params).expect("bench parameters");
+    let ctl_cfg = controller_config(mode, cfg);
+    let coeffs = Coeffs::new(cfg.params).expect("bench parameters");
     let mut ctl = Controller::new(coeffs, ctl_cfg, load0 as f32).expect("controller config");
     let no_error: InjectedError = Rc::new(Cell::new(None));
     let inlet = SimPwm::new();
@@ -370,16 +345,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn pi_only_params_are_accepted_and_nearly_flat() {
-        let c = Coeffs::new(pi_only_params()).unwrap();
-        for load in [100.0, 600.0] {
-            let m = c.load_model(load).unwrap();
-            for x in [0.03f32, 0.1, 0.16] {
-                for br in [Branch::Contraction, Branch::Expansion] {
-                    let p = m.pressure_mpa(x, br);
-                    assert!(p > 0.17 && p < 0.22, "{load} N {x}: {p}");
-                }
-            }
-        }
+    fn pi_only_is_the_same_controller_without_feedforward() {
+        let cfg = BenchConfig::default_with_seed(1);
+        let ff = controller_config(Mode::FeedforwardPi, &cfg);
+        let pi = controller_config(Mode::PiOnly, &cfg);
+        assert_eq!(ff.feedforward, Feedforward::Hysteresis);
+        assert_eq!(pi.feedforward, Feedforward::Off);
+        assert_eq!((pi.kp_mpa, pi.ki_mpa_per_s), (ff.kp_mpa, ff.ki_mpa_per_s));
+        assert_eq!(pi.pressure_gain_per_mpa, ff.pressure_gain_per_mpa);
+        // The integral alone must be able to reach Pmax.
+        assert!(pi.integral_limit_mpa >= cfg.params.points.max_pressure_mpa);
     }
 }

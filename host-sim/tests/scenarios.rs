@@ -40,10 +40,12 @@ fn triangle_fig6_tracks_and_feedforward_helps() {
     // Closed-loop tracking bounds (contraction, fraction of rest length).
     assert!(ff.metrics.rms_error < 0.005, "{}", ff.metrics.rms_error);
     assert!(ff.metrics.max_error < 0.02, "{}", ff.metrics.max_error);
-    // Measured 0.69 with pam-core's hand-set default model: the goal of
-    // 0.5 is NOT met on the triangle (see README); this guards the gain.
+    // PI alone is the same controller with `Feedforward::Off`. Measured
+    // 0.66 here (0.63 full length) with the default gains and pam-core's
+    // hand-set default model: the goal of 0.5 is NOT met on the triangle
+    // (see README); this guards what is measured.
     assert!(
-        ff.metrics.rms_error < 0.8 * pi.metrics.rms_error,
+        ff.metrics.rms_error < 0.75 * pi.metrics.rms_error,
         "FF+PI {} vs PI {}",
         ff.metrics.rms_error,
         pi.metrics.rms_error
@@ -78,7 +80,7 @@ fn random_step_load_fig7_is_detected_and_followed() {
     }
     // The active model follows the load (to the load cell's noise).
     assert!(ff.metrics.worst_model_load_error_n < 10.0);
-    // The feedforward at least halves the RMS tracking error here.
+    // The feedforward at least halves the RMS tracking error here (measured 0.40).
     assert!(
         ff.metrics.rms_error <= 0.5 * pi.metrics.rms_error,
         "FF+PI {} vs PI {}",
@@ -101,5 +103,11 @@ fn cyclic_load_change_fig8_adapts() {
     assert!(ff.metrics.worst_model_load_error_n < 10.0);
     assert!(ff.metrics.rms_error < 0.006, "{}", ff.metrics.rms_error);
     assert!(ff.metrics.max_error < 0.03, "{}", ff.metrics.max_error);
-    assert!(ff.metrics.rms_error < pi.metrics.rms_error);
+    // Measured 0.61 (0.60 full length): the goal of 0.5 is not met here either.
+    assert!(
+        ff.metrics.rms_error < 0.7 * pi.metrics.rms_error,
+        "FF+PI {} vs PI {}",
+        ff.metrics.rms_error,
+        pi.metrics.rms_error
+    );
 }
