@@ -6,7 +6,8 @@
 //! 1. read the pressure, contraction and load sensors ([`Sample::read`]);
 //! 2. check every reading: a read error, a non-finite value, a value outside
 //!    its plausible range, a reading frozen for more than `stuck_samples`
-//!    samples, a load outside the calibrated range of the coefficients, or a
+//!    samples, a load outside the calibrated range of the coefficients by
+//!    more than `load_margin_n` (within it, clamped to the range), or a
 //!    non-finite set-point is a [`Fault`];
 //! 3. feed pam-core's [`Tracker`] with the *desired* contraction as drive
 //!    signal (noise-free, so the branch switches as the set-point reverses
@@ -93,7 +94,8 @@ pub enum Fault {
     /// A sensor returned NaN or an infinity.
     NonFinite(SensorId),
     /// A reading is outside its plausible range ([`SafetyConfig`]); for the
-    /// load, outside the calibrated range of the coefficients.
+    /// load, outside the calibrated range of the coefficients by more than
+    /// `load_margin_n`.
     OutOfRange(SensorId),
     /// A reading was bit-for-bit identical for more than `stuck_samples`
     /// samples: a frozen converter or a disconnected line held by a filter.
@@ -141,6 +143,14 @@ pub struct SafetyConfig {
     pub contraction_min: f32,
     /// Highest plausible contraction reading.
     pub contraction_max: f32,
+    /// Tolerance on the load reading beyond the calibrated range of the
+    /// coefficients, N (≥ 0). A load cell at exactly `min_load_n` or
+    /// `max_load_n` reads on both sides of it from noise alone; without a
+    /// margin the controller would chatter in and out of the safe state.
+    /// Within `[min_load_n − margin, max_load_n + margin]` the mode tracker
+    /// clamps the load to the calibrated range (the model at the nearest
+    /// end); beyond it the reading is [`Fault::OutOfRange`]`(Load)`.
+    pub load_margin_n: f32,
     /// A reading identical to the bit for more than this many consecutive
     /// samples is stuck; 0 disables the check. Real converters dither by at
     /// least one count; a simulated sensor must add noise too.
@@ -206,6 +216,9 @@ impl ControllerConfig {
             pressure_max_mpa: 0.8,
             contraction_min: -0.05,
             contraction_max: 0.4,
+            // 5 % of the 100–600 N range of `Params::DEFAULT`; > 15 σ of a
+            // 1.5 N RMS load cell.
+            load_margin_n: 25.0,
             stuck_samples: 200,
             recovery_samples: 50,
         },
@@ -251,6 +264,12 @@ impl ControllerConfig {
             return Err(ConfigError::Invalid(
                 "contraction_min",
                 "need finite contraction_min < contraction_max",
+            ));
+        }
+        if !non_negative(s.load_margin_n) {
+            return Err(ConfigError::Invalid(
+                "load_margin_n",
+                "must be finite and >= 0 N",
             ));
         }
         if s.recovery_samples == 0 {
@@ -630,12 +649,14 @@ impl Controller {
             sx,
             s.stuck_samples,
         );
-        // The load's plausible range is the calibrated range of the model family.
+        // The load's plausible range is the calibrated range of the model
+        // family widened by the margin; inside the margin the tracker clamps
+        // the load to the calibrated range (`Coeffs::clamp_load_n`).
         let load = check_reading(
             SensorId::Load,
             sample.load_n,
-            p.min_load_n,
-            p.max_load_n,
+            p.min_load_n - s.load_margin_n,
+            p.max_load_n + s.load_margin_n,
             sl,
             s.stuck_samples,
         );
@@ -933,6 +954,44 @@ mod tests {
     }
 
     #[test]
+    fn load_within_the_margin_is_clamped_beyond_it_faults() {
+        let p = Params::DEFAULT;
+        let margin = ControllerConfig::DEFAULT.safety.load_margin_n;
+        assert!(margin > 0.0);
+        for (edge, outward) in [(p.max_load_n, 1.0f32), (p.min_load_n, -1.0)] {
+            let mut c = no_stuck_check();
+            // A noisy cell at the calibrated edge: both sides of it, and up to
+            // the margin, never fault.
+            for k in 0..200u16 {
+                let wobble = outward * margin * (f32::from(k % 5) / 4.0 - 0.25);
+                let s = c.update(&good(0.2, 0.1, edge + wobble), 0.1);
+                assert_eq!(s.fault, None, "{edge} {wobble}");
+            }
+            // Readings beyond the edge count as the edge (clamped), so the
+            // model is within the inward wobble (a quarter margin) of it.
+            let model_n = c.tracker().load_n();
+            assert!(
+                (model_n - edge).abs() <= 0.25 * margin && (model_n - edge) * outward <= 0.0,
+                "{model_n}"
+            );
+            // Just beyond the margin: fault, same step, valves safe.
+            let s = c.update(&good(0.2, 0.1, edge + outward * (margin + 0.5)), 0.1);
+            assert_eq!(s.fault, Some(Fault::OutOfRange(SensorId::Load)));
+            assert_eq!(s.command, ValveCommand::Safe(SafeState::Exhaust));
+        }
+        // A zero margin is exactly the calibrated range.
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.load_margin_n = 0.0;
+        cfg.safety.stuck_samples = 0;
+        let mut c = controller_with(cfg);
+        assert_eq!(c.update(&good(0.2, 0.1, 600.0), 0.1).fault, None);
+        assert_eq!(
+            c.update(&good(0.2, 0.1, 600.5), 0.1).fault,
+            Some(Fault::OutOfRange(SensorId::Load))
+        );
+    }
+
+    #[test]
     fn non_finite_set_point_faults() {
         let mut c = controller();
         let s = c.update(&good(0.2, 0.1, 200.0), f32::NAN);
@@ -967,6 +1026,14 @@ mod tests {
             cfg.validate(),
             Err(ConfigError::Invalid("recovery_samples", _))
         ));
+        for bad in [-1.0, f32::NAN, f32::INFINITY] {
+            let mut cfg = ControllerConfig::DEFAULT;
+            cfg.safety.load_margin_n = bad;
+            assert!(matches!(
+                cfg.validate(),
+                Err(ConfigError::Invalid("load_margin_n", _))
+            ));
+        }
         let mut cfg = ControllerConfig::DEFAULT;
         cfg.tracker.load_debounce_samples = 0;
         assert!(matches!(cfg.validate(), Err(ConfigError::Tracker(_))));
