@@ -50,7 +50,17 @@
 //! clamped).
 
 use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, SensorErrorKind, Valve};
-use pam_core::{Branch, Coeffs, Tracker, TrackerConfig, Update};
+use pam_core::effects::{NonLocalMemory, Reversal, ReversalStack};
+use pam_core::{Branch, Coeffs, LoadModel, Tracker, TrackerConfig, Update};
+
+/// Reversal points the [`Feedforward::HysteresisMemory`] feedforward
+/// remembers (nested minor loops); older ones are dropped.
+pub const MEMORY_DEPTH: usize = 8;
+
+/// Bisection steps of the minor-loop feedforward's inverse: `Pmax`
+/// (0.5 MPa) over 2²⁰ is 5·10⁻⁷ MPa, far below the 2·10⁻⁴ MPa of
+/// pam-core's inverse table (`pam_core::hysteresis::INVERSE_TOLERANCE_MPA`).
+pub const MEMORY_INVERSE_STEPS: usize = 20;
 
 /// The hardware a [`Controller`] drives: three sensors and a valve.
 ///
@@ -160,7 +170,7 @@ pub struct SafetyConfig {
 }
 
 /// Which feedforward the outer loop adds to its PI term.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Feedforward {
     /// The hysteresis model on the active branch, eqs. (25)/(26): the design.
@@ -170,6 +180,17 @@ pub enum Feedforward {
     Constraint,
     /// None: PI feedback only (for comparison).
     Off,
+    /// The hysteresis model with pam-core's non-local memory
+    /// ([`pam_core::effects::memory`]): at a reversal inside the loop the
+    /// feedforward follows a minor loop from the turning point back to the
+    /// previous reversal instead of jumping by `2·be` to the other branch
+    /// (the jump the paper's conclusion says non-local memory removes).
+    /// With no reversal remembered it is exactly [`Feedforward::Hysteresis`].
+    ///
+    /// Work per step: [`MEMORY_INVERSE_STEPS`] evaluations of the memory's
+    /// pressure → contraction curve (each up to three table inverses and one
+    /// `powf`) to invert it, since the memory is defined in that direction.
+    HysteresisMemory(NonLocalMemory),
 }
 
 /// Gains, rate and limits of the controller.
@@ -271,6 +292,14 @@ impl ControllerConfig {
                 "load_margin_n",
                 "must be finite and >= 0 N",
             ));
+        }
+        if let Feedforward::HysteresisMemory(m) = &self.feedforward {
+            if m.validate().is_err() {
+                return Err(ConfigError::Invalid(
+                    "feedforward",
+                    "memory shape must be finite and in [0.05, 50]",
+                ));
+            }
         }
         if s.recovery_samples == 0 {
             return Err(ConfigError::Invalid("recovery_samples", "must be >= 1"));
@@ -386,8 +415,102 @@ impl StuckMonitor {
     }
 }
 
+/// State of the [`Feedforward::HysteresisMemory`] feedforward: the reversal
+/// points `(feedforward pressure, desired contraction)` and the extreme of
+/// the current sweep (the next reversal's turning point).
+#[derive(Clone, Copy, Debug, Default)]
+struct MemoryState {
+    stack: ReversalStack<MEMORY_DEPTH>,
+    extreme: Option<Reversal>,
+}
+
+impl MemoryState {
+    fn clear(&mut self) {
+        self.stack.clear();
+        self.extreme = None;
+    }
+
+    /// The feedforward pressure that holds `x_ref` on the memory's curve for
+    /// `branch`, then the memory's update for this sample.
+    ///
+    /// The mode tracker switches the branch only once the set-point has
+    /// moved `direction_deadband` back from the sweep's extreme. In between,
+    /// following the old branch backwards and then changing curve at the
+    /// switch would jump by the two curves' slope difference times the
+    /// deadband (up to 0.02 MPa where a minor loop is steep). So while the
+    /// set-point is back from the extreme the feedforward already follows
+    /// the curve the reversal will start, a trial copy of the memory with
+    /// the extreme pushed, on the opposite branch; at the switch the real
+    /// memory takes the same push and the feedforward continues without a
+    /// step. If the set-point turns again first, that curve passes through
+    /// the extreme, so the return to the old sweep is continuous too.
+    fn feedforward_mpa(
+        &mut self,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        x_ref: f32,
+        branch: Branch,
+        branch_switch: bool,
+    ) -> f32 {
+        if branch_switch {
+            if let Some(r) = self.extreme.take() {
+                self.stack.push(r);
+            }
+        }
+        if let Some(e) = self.extreme {
+            let backing_off = match branch {
+                Branch::Contraction => x_ref < e.contraction,
+                Branch::Expansion => x_ref > e.contraction,
+            };
+            if backing_off {
+                let mut trial = self.stack;
+                trial.push(e);
+                return inverse_mpa(&trial, params, model, x_ref, branch.opposite());
+            }
+        }
+        let p_mpa = if self.stack.points().is_empty() {
+            // No reversal remembered: `x(p)` is the branch inverse, whose
+            // inverse is the forward model, eqs. (25)/(26).
+            model.pressure_mpa(x_ref, branch)
+        } else {
+            inverse_mpa(&self.stack, params, model, x_ref, branch)
+        };
+        self.stack.wipe_out(p_mpa, branch);
+        // At or beyond the sweep's extreme: the turning point of the next reversal.
+        self.extreme = Some(Reversal {
+            pressure_mpa: p_mpa,
+            contraction: x_ref,
+        });
+        p_mpa
+    }
+}
+
+/// The pressure in `[0, Pmax]` at which the memory's curve `x(p)` for
+/// `branch` reaches `x_ref`: bisection of [`MEMORY_INVERSE_STEPS`] steps, each
+/// on a copy of `stack` (a candidate applies its own wiping-out, so a minor
+/// loop that closes within this step is inverted correctly).
+fn inverse_mpa(
+    stack: &ReversalStack<MEMORY_DEPTH>,
+    params: &NonLocalMemory,
+    model: &LoadModel,
+    x_ref: f32,
+    branch: Branch,
+) -> f32 {
+    let (mut lo, mut hi) = (0.0f32, model.max_pressure_mpa());
+    for _ in 0..MEMORY_INVERSE_STEPS {
+        let mid = 0.5 * (lo + hi);
+        let mut trial = *stack;
+        if trial.contraction(params, model, mid, branch, 1.0) <= x_ref {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 /// The position controller. Holds the coefficients, the mode tracker and the
-/// loop state; about 500 bytes, no references.
+/// loop state; about 600 bytes, no references.
 #[derive(Clone, Debug)]
 pub struct Controller {
     coeffs: Coeffs,
@@ -397,6 +520,7 @@ pub struct Controller {
     fault: Option<Fault>,
     good_run: u16,
     stuck: [StuckMonitor; 3],
+    memory: MemoryState,
 }
 
 /// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
@@ -457,6 +581,7 @@ impl Controller {
             fault: None,
             good_run: 0,
             stuck: [StuckMonitor::default(); 3],
+            memory: MemoryState::default(),
         })
     }
 
@@ -534,6 +659,10 @@ impl Controller {
         let tracker = self
             .tracker
             .update(&self.coeffs, desired_contraction, load_n);
+        if tracker.load_switch.is_some() {
+            // The turning points belong to the old load's loop.
+            self.memory.clear();
+        }
         let safe = ValveCommand::Safe(self.config.safety.safe_state);
         let mut step = Step {
             fault: None,
@@ -581,6 +710,14 @@ impl Controller {
             // eq. (21): the constraint model, between the two branches.
             Feedforward::Constraint => model.constraint_pressure_mpa(x_ref),
             Feedforward::Off => 0.0,
+            // eqs. (25)/(26) with pam-core's minor loops between reversals.
+            Feedforward::HysteresisMemory(mem) => self.memory.feedforward_mpa(
+                &mem,
+                model,
+                x_ref,
+                branch,
+                step.tracker.branch_switch.is_some(),
+            ),
         };
         let error = x_ref - contraction;
         let max_mpa = model.max_pressure_mpa();
@@ -620,6 +757,9 @@ impl Controller {
         // Bumpless restart: the integral built up before the fault does not
         // apply to the state the muscle is in after it.
         self.integral_mpa = 0.0;
+        // The safe state vents (or holds) the muscle: its loop history no
+        // longer applies; restart on the major loop.
+        self.memory.clear();
         step.fault = Some(fault);
         step.feedforward_mpa = 0.0;
         step.pressure_cmd_mpa = 0.0;
@@ -991,6 +1131,121 @@ mod tests {
         );
     }
 
+    const MEMORY: Feedforward = Feedforward::HysteresisMemory(NonLocalMemory { shape: 1.0 });
+
+    /// Sweep the set-point through `knots` at 1e-4 per sample with readings
+    /// at the set-point; returns `(feedforward, branch switched)` per sample.
+    fn sweep(c: &mut Controller, knots: &[f32]) -> std::vec::Vec<(f32, bool)> {
+        let mut out = std::vec::Vec::new();
+        let mut x = knots[0];
+        for &target in &knots[1..] {
+            while (target - x).abs() > 5e-5 {
+                x += (target - x).clamp(-1e-4, 1e-4);
+                let s = c.update(&good(0.2, x, 200.0), x);
+                assert_eq!(s.fault, None);
+                out.push((s.feedforward_mpa, s.tracker.branch_switch.is_some()));
+            }
+        }
+        out
+    }
+
+    fn with_feedforward(ff: Feedforward) -> Controller {
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.stuck_samples = 0;
+        cfg.feedforward = ff;
+        controller_with(cfg)
+    }
+
+    fn largest_jump_at_switch(trace: &[(f32, bool)]) -> f32 {
+        trace
+            .windows(2)
+            .filter(|w| w[1].1)
+            .map(|w| (w[1].0 - w[0].0).abs())
+            .fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn memory_feedforward_follows_a_minor_loop_instead_of_jumping() {
+        let knots = [0.06, 0.16, 0.08, 0.14, 0.06, 0.16];
+        let plain = sweep(&mut with_feedforward(Feedforward::Hysteresis), &knots);
+        let mut c = with_feedforward(MEMORY);
+        let mem = sweep(&mut c, &knots);
+        assert_eq!(plain.len(), mem.len());
+        assert_eq!(mem.iter().filter(|s| s.1).count(), 4);
+        // The paper's model jumps by about 2·be at each switch.
+        let be2 = 2.0 * c.tracker().model().offset_mpa(0.11);
+        assert!(largest_jump_at_switch(&plain) > 0.5 * be2);
+        // With the memory the feedforward has no step at a switch: it
+        // changes only as the set-point moves (1e-4 per sample).
+        let at_switch = largest_jump_at_switch(&mem);
+        assert!(at_switch < 2e-3, "{at_switch} vs 2be {be2}");
+        let worst = mem
+            .windows(2)
+            .map(|w| (w[1].0 - w[0].0).abs())
+            .fold(0.0, f32::max);
+        assert!(worst < 2e-3, "{worst}");
+        // Up to the first turning point it is the plain model exactly.
+        let top = mem.iter().zip(&plain).position(|(m, p)| m != p).unwrap();
+        let first = mem.iter().position(|s| s.1).unwrap();
+        // 1000 samples from 0.06 to 0.16; it differs only once backing off.
+        assert!(top >= 1000 && top < first, "{top} {first}");
+        // After the last sweep passes every earlier turning point the loops
+        // have closed: back on the contraction branch of the plain model.
+        let (m, p) = (mem.last().unwrap().0, plain.last().unwrap().0);
+        assert!((m - p).abs() < 1e-3, "{m} vs {p}");
+    }
+
+    #[test]
+    fn memory_is_cleared_by_a_fault_and_by_a_load_switch() {
+        let mut c = with_feedforward(MEMORY);
+        sweep(&mut c, &[0.06, 0.16, 0.12]);
+        let model = c.tracker().model().clone();
+        // Inside a minor loop: between the branches.
+        let x = 0.12;
+        let s = c.update(&good(0.2, x + 1e-4, 200.0), x);
+        let (up, down) = (
+            model.pressure_mpa(x, Branch::Contraction),
+            model.pressure_mpa(x, Branch::Expansion),
+        );
+        assert!(
+            s.feedforward_mpa > down + 1e-3 && s.feedforward_mpa < up,
+            "{s:?}"
+        );
+        // A fault vents the muscle: the loop history is gone.
+        c.update(&good(2.0, x, 200.0), x);
+        let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+        let mut last = None;
+        for k in 0..n {
+            last = Some(c.update(&good(0.2, x + f32::from(k % 2) * 1e-4, 200.0), x));
+        }
+        let s = last.unwrap();
+        assert!(s.recovered);
+        assert!((s.feedforward_mpa - down).abs() < 1e-6, "{s:?}");
+        // A load switch: the old load's turning points do not apply.
+        let mut c = with_feedforward(MEMORY);
+        sweep(&mut c, &[0.06, 0.16, 0.12]);
+        let mut s = c.update(&good(0.2, x, 400.0), x);
+        while s.tracker.load_switch.is_none() {
+            s = c.update(&good(0.2, x, 400.0), x);
+        }
+        let m = c.tracker().model();
+        assert!((s.feedforward_mpa - m.pressure_mpa(x, Branch::Expansion)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn memory_shape_is_validated() {
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.feedforward = MEMORY;
+        cfg.validate().unwrap();
+        for shape in [0.0, f32::NAN, 51.0] {
+            cfg.feedforward = Feedforward::HysteresisMemory(NonLocalMemory { shape });
+            assert!(matches!(
+                cfg.validate(),
+                Err(ConfigError::Invalid("feedforward", _))
+            ));
+        }
+    }
+
     #[test]
     fn non_finite_set_point_faults() {
         let mut c = controller();
@@ -1063,7 +1318,13 @@ mod tests {
 
     #[test]
     fn arbitrary_samples_never_panic_and_never_command_nan() {
-        let mut c = controller();
+        for ff in [Feedforward::Hysteresis, MEMORY] {
+            arbitrary_samples_with(ff);
+        }
+    }
+
+    fn arbitrary_samples_with(ff: Feedforward) {
+        let mut c = with_feedforward(ff);
         let values = [
             f32::NAN,
             f32::INFINITY,
@@ -1085,6 +1346,7 @@ mod tests {
                             assert!((-1.0..=1.0).contains(&f), "{p} {x} {l} {sp}: {f}");
                         }
                         assert!(s.pressure_cmd_mpa.is_finite());
+                        assert!(s.feedforward_mpa.is_finite());
                     }
                 }
             }

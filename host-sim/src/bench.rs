@@ -10,6 +10,7 @@ use crate::rig::Rig;
 use crate::scenarios::Scenario;
 use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, ValveCommand};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
+use pam_core::effects::NonLocalMemory;
 use pam_core::{Branch, Coeffs, Params};
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
@@ -20,6 +21,10 @@ pub enum Mode {
     /// The firmware's controller with pam-core's hysteresis model as
     /// feedforward plus PI: the project's controller.
     FeedforwardPi,
+    /// [`Mode::FeedforwardPi`] with the firmware's
+    /// [`Feedforward::HysteresisMemory`] ([`MEMORY`]): minor loops instead of
+    /// the `2·be` jump at a branch switch.
+    FeedforwardMemoryPi,
     /// PI feedback alone: the same controller, model and gains with
     /// [`Feedforward::Off`], and the integrator limit raised to
     /// [`PI_ONLY_INTEGRAL_LIMIT_MPA`] so that PI can reach the whole
@@ -33,6 +38,7 @@ impl Mode {
     pub fn label(self) -> &'static str {
         match self {
             Mode::FeedforwardPi => "FF+PI",
+            Mode::FeedforwardMemoryPi => "FF(mem)+PI",
             Mode::PiOnly => "PI",
         }
     }
@@ -148,6 +154,17 @@ pub struct Metrics {
     pub worst_model_load_error_n: f64,
 }
 
+impl Metrics {
+    /// Largest |feedforward change| across a branch switch, MPa (0 without
+    /// switches).
+    pub fn max_feedforward_jump_mpa(&self) -> f64 {
+        self.switches
+            .iter()
+            .map(|s| s.feedforward_jump_mpa.abs())
+            .fold(0.0, f64::max)
+    }
+}
+
 /// A finished run.
 #[derive(Clone, Debug)]
 pub struct Run {
@@ -161,11 +178,16 @@ pub struct Run {
     pub metrics: Metrics,
 }
 
+/// Non-local memory of [`Mode::FeedforwardMemoryPi`]: pam-core's linear
+/// blend (`shape` 1) between a turning point and the previous one.
+pub const MEMORY: NonLocalMemory = NonLocalMemory { shape: 1.0 };
+
 /// The controller configuration `mode` runs with.
 pub fn controller_config(mode: Mode, cfg: &BenchConfig) -> ControllerConfig {
     let mut c = cfg.controller;
     match mode {
         Mode::FeedforwardPi => {}
+        Mode::FeedforwardMemoryPi => c.feedforward = Feedforward::HysteresisMemory(MEMORY),
         Mode::PiOnly => {
             c.feedforward = Feedforward::Off;
             c.integral_limit_mpa = PI_ONLY_INTEGRAL_LIMIT_MPA;

@@ -47,22 +47,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     report::plot_characterisation(&out.join("characterisation_loops.svg"), &samples)?;
     println!("      {} samples", samples.len());
 
-    let mut results: Vec<(Scenario, Run, Run)> = Vec::new();
+    let mut results: Vec<(Scenario, Run, Run, Run)> = Vec::new();
     let list = scenarios(seed);
     for (i, sc) in list.into_iter().enumerate() {
         println!("[{}/4] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
         let pi = run(&sc, Mode::PiOnly, &cfg);
         let ff = run(&sc, Mode::FeedforwardPi, &cfg);
-        for r in [&pi, &ff] {
-            let name = format!(
-                "{}_{}.csv",
-                sc.name,
-                if r.mode == Mode::PiOnly {
-                    "pi"
-                } else {
-                    "ff_pi"
-                }
-            );
+        let mem = run(&sc, Mode::FeedforwardMemoryPi, &cfg);
+        for r in [&pi, &ff, &mem] {
+            let suffix = match r.mode {
+                Mode::PiOnly => "pi",
+                Mode::FeedforwardPi => "ff_pi",
+                Mode::FeedforwardMemoryPi => "ff_mem_pi",
+            };
+            let name = format!("{}_{suffix}.csv", sc.name);
             // 100 Hz in the CSV (every 10th control period) keeps the files small.
             report::write_trace_csv(&out.join(name), &r.trace, 10)?;
         }
@@ -73,14 +71,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &ff,
             cfg.warmup_s,
         )?;
-        results.push((sc, pi, ff));
+        results.push((sc, pi, ff, mem));
     }
 
     println!();
     println!("| scenario | controller | RMS error | max error | load steps detected (samples) | max FF jump at switch (MPa) | max chamber change in 10 ms at switch (MPa) |");
     println!("|---|---|---|---|---|---|---|");
-    for (sc, pi, ff) in &results {
-        for r in [pi, ff] {
+    for (sc, pi, ff, mem) in &results {
+        for r in [pi, ff, mem] {
             let m = &r.metrics;
             let det: Vec<usize> = m
                 .load_steps
@@ -98,11 +96,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     det.iter().max().copied().unwrap_or(0)
                 )
             };
-            let ffj = m
-                .switches
-                .iter()
-                .map(|s| s.feedforward_jump_mpa.abs())
-                .fold(0.0, f64::max);
+            let ffj = m.max_feedforward_jump_mpa();
             let chj = m
                 .switches
                 .iter()
@@ -119,11 +113,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 chj
             );
         }
+        for r in [ff, mem] {
+            println!(
+                "| {} | {} / PI | {:.0} % | {:.0} % | | | |",
+                sc.name,
+                r.mode.label(),
+                100.0 * r.metrics.rms_error / pi.metrics.rms_error,
+                100.0 * r.metrics.max_error / pi.metrics.max_error
+            );
+        }
+    }
+    println!();
+    println!("Feedforward jump at a branch switch (MPa), plain model vs non-local memory:");
+    println!();
+    println!(
+        "| scenario | switches | plain FF+PI: largest | FF(mem)+PI: largest | mitigated / plain |"
+    );
+    println!("|---|---|---|---|---|");
+    for (sc, _, ff, mem) in &results {
+        let (a, b) = (
+            ff.metrics.max_feedforward_jump_mpa(),
+            mem.metrics.max_feedforward_jump_mpa(),
+        );
         println!(
-            "| {} | FF+PI / PI | {:.0} % | {:.0} % | | | |",
+            "| {} | {} / {} | {:.4} | {:.4} | {:.0} % |",
             sc.name,
-            100.0 * ff.metrics.rms_error / pi.metrics.rms_error,
-            100.0 * ff.metrics.max_error / pi.metrics.max_error
+            ff.metrics.switches.len(),
+            mem.metrics.switches.len(),
+            a,
+            b,
+            100.0 * b / a
         );
     }
     println!();

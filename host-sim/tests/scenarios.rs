@@ -10,12 +10,40 @@ const DEBOUNCE: usize = firmware::ControllerConfig::DEFAULT
     .tracker
     .load_debounce_samples as usize;
 
+/// Stated bound on the feedforward's change across a branch switch with the
+/// firmware's non-local memory (`Feedforward::HysteresisMemory`), MPa: 5 %
+/// of the plain model's `2·be` = 0.04 MPa. Measured ≤ 0.0003 (README).
+const MITIGATED_JUMP_BOUND_MPA: f64 = 0.002;
+
 fn both(sc: &Scenario) -> (Run, Run) {
     let cfg = BenchConfig::default_with_seed(11);
-    (
+    let (pi, ff) = (
         run(sc, Mode::PiOnly, &cfg),
         run(sc, Mode::FeedforwardPi, &cfg),
-    )
+    );
+    // The same scenario with the minor-loop feedforward: the 2·be jump of
+    // the plain model at each switch is gone.
+    let mem = run(sc, Mode::FeedforwardMemoryPi, &cfg);
+    eprintln!(
+        "{}: FF jump at switch plain {:.4} mitigated {:.4} MPa; FF(mem)+PI rms {:.4}",
+        sc.name,
+        ff.metrics.max_feedforward_jump_mpa(),
+        mem.metrics.max_feedforward_jump_mpa(),
+        mem.metrics.rms_error
+    );
+    assert_eq!(mem.metrics.fault_samples, 0);
+    assert_eq!(mem.metrics.switches.len(), ff.metrics.switches.len());
+    assert!(mem.metrics.switches.len() >= 5);
+    assert!(ff.metrics.max_feedforward_jump_mpa() > 0.03);
+    assert!(
+        mem.metrics.max_feedforward_jump_mpa() <= MITIGATED_JUMP_BOUND_MPA,
+        "{:?}",
+        mem.metrics.switches
+    );
+    // It still tracks (measured 0.0043-0.0054 RMS at full length: worse than
+    // the plain model's 0.0034-0.0040 on this rig, see README).
+    assert!(mem.metrics.rms_error < 0.0065, "{}", mem.metrics.rms_error);
+    (pi, ff)
 }
 
 fn report(name: &str, pi: &Run, ff: &Run) {
