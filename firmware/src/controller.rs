@@ -489,6 +489,10 @@ impl MemoryState {
 /// `branch` reaches `x_ref`: bisection of [`MEMORY_INVERSE_STEPS`] steps, each
 /// on a copy of `stack` (a candidate applies its own wiping-out, so a minor
 /// loop that closes within this step is inverted correctly).
+///
+/// Not inlined: it is called from two places, and its body inlines
+/// pam-core's table inverse and `powf` (flash budget).
+#[inline(never)]
 fn inverse_mpa(
     stack: &ReversalStack<MEMORY_DEPTH>,
     params: &NonLocalMemory,
