@@ -1,19 +1,36 @@
 """Merge the bench image's group names with the plugin's region counts.
 
-Each measured region includes the marker call overhead; the `empty` group
-measures it, and it is subtracted. Per group: mean and max instructions per
-call, and VDIV / VSQRT executed per call (mean).
+Each measured region includes the marker call overhead and the call of the
+group's `bench_<group>` function; the `empty` group measures both (with an
+empty `bench_empty`), and it is subtracted. Per group: mean and max
+instructions per call, VDIV / VSQRT executed per call (mean), and the code
+bytes reachable from `bench_<group>`: the sizes (llvm-nm --print-size) of it
+and of every function it reaches through direct branches and calls in the
+disassembly (shared functions count for each group that reaches them;
+calls through pointers are not followed).
+
+With the accuracy TSV written by the `identify` binary, a per-model summary
+follows: cost, bytes and held-out accuracy side by side, and the issue's goals.
 """
+import re
 import sys
 
 out_path, regions_path, symbols_path, baseline_path, mode = sys.argv[1:6]
+disasm_path = sys.argv[6] if len(sys.argv) > 6 else None
+accuracy_path = sys.argv[7] if len(sys.argv) > 7 else None
 
 groups = []  # (name, n)
+ram = {}  # group -> bytes of state and coefficients in RAM
+table_bytes = {}  # group -> bytes of constant per-load tables (flash)
 done = False
 for line in open(out_path):
     parts = line.split()
     if parts[:1] == ["group"]:
         groups.append((parts[1], int(parts[2])))
+    if parts[:1] == ["ram"]:
+        ram[parts[1]] = int(parts[2])
+    if parts[:1] == ["table"]:
+        table_bytes[parts[1]] = int(parts[2])
     if parts[:1] == ["done"]:
         done = True
 if not done:
@@ -50,10 +67,106 @@ for name, chunk in rows.items():
         )
     )
 
-print("| call | instructions (mean) | instructions (max) | VDIV per call | VSQRT per call |")
-print("|---|---:|---:|---:|---:|")
+# Symbol sizes and the direct call/branch graph.
+sizes = {}
+for line in open(symbols_path):
+    p = line.split()
+    if len(p) == 4:
+        sizes[p[3]] = int(p[1])
+graph = {}
+if disasm_path:
+    func = None
+    head = re.compile(r"^[0-9a-f]+ <(.+)>:$")
+    insn = re.compile(r"^\s*[0-9a-f]+:\s+(\S+)\s+(.*)$")
+    target = re.compile(r"<([^>+]+)(\+0x[0-9a-f]+)?>")
+    for line in open(disasm_path):
+        m = head.match(line.strip())
+        if m:
+            func = m.group(1)
+            graph.setdefault(func, set())
+            continue
+        m = insn.match(line)
+        if not (m and func):
+            continue
+        op = m.group(1)
+        if not (op.startswith("b") or op.startswith("cb")) or op.startswith(("bic", "bfi", "bfc", "bkpt")):
+            continue
+        t = target.search(m.group(2))
+        if t and t.group(1) != func:
+            graph[func].add(t.group(1))
+
+
+def code_bytes(name):
+    root = "bench_" + name
+    if root not in sizes or not graph:
+        return None
+    seen, todo = set(), [root]
+    while todo:
+        f = todo.pop()
+        if f in seen or f.startswith("bench_marker"):
+            continue
+        seen.add(f)
+        todo.extend(graph.get(f, ()))
+    return sum(sizes.get(f, 0) for f in seen)
+
+
+stats = {name: (mean, mx, vdiv, vsqrt) for name, mean, mx, vdiv, vsqrt in table}
+
+print("| call | instructions (mean) | instructions (max) | VDIV per call | VSQRT per call | code bytes |")
+print("|---|---:|---:|---:|---:|---:|")
 for name, mean, mx, vdiv, vsqrt in table:
-    print(f"| `{name}` | {mean:.0f} | {mx} | {vdiv:.1f} | {vsqrt:.1f} |")
+    cb = code_bytes(name)
+    print(f"| `{name}` | {mean:.0f} | {mx} | {vdiv:.1f} | {vsqrt:.1f} | {cb if cb is not None else '-'} |")
+
+if accuracy_path:
+    acc = {}
+    for line in open(accuracy_path):
+        if line.startswith("#") or not line.strip():
+            continue
+        key, rms, mxe, _train = line.split("\t")
+        acc[key] = (float(rms), float(mxe))
+    models = [
+        ("pam-core, paper model", "paper_model_step", "pam_core"),
+        ("pam-core + non-local memory", "nonlocal_memory_step", "pam_core_memory"),
+        ("Prandtl–Ishlinskii, 16 plays", "pi16_step", "pi16"),
+        ("Preisach, 16 × 16 (136 relays)", "preisach16_step", "preisach16"),
+    ]
+    print()
+    print("| model (per-sample call) | instructions (mean / max) | VDIV / VSQRT | code bytes | RAM bytes | table bytes (flash) | held-out RMS (%) | held-out max (%) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for label, g, key in models:
+        if g not in stats:
+            continue
+        mean, mx, vdiv, vsqrt = stats[g]
+        a = acc.get(key)
+        print(
+            f"| {label} (`{g}`) | {mean:.0f} / {mx} | {vdiv:.1f} / {vsqrt:.1f} | {code_bytes(g) or '-'} | "
+            f"{ram.get(g, '-')} | {table_bytes.get(g, 0)} | "
+            + (f"{100 * a[0]:.3f} | {100 * a[1]:.3f} |" if a else "- | - |")
+        )
+
+    def mean_of(g):
+        return stats[g][0] if g in stats else float("nan")
+
+    fwd = max(mean_of("forward_contraction"), mean_of("forward_expansion"))
+    inv = max(mean_of("inverse_contraction"), mean_of("inverse_expansion"))
+    mem = mean_of("nonlocal_memory_step") - mean_of("simulator_step")
+    ctl = mean_of("controller_step")
+    pam, pi = mean_of("paper_model_step"), mean_of("pi16_step")
+    pam_acc, pi_acc = acc.get("pam_core", (float("nan"),) * 2), acc.get("pi16", (float("nan"),) * 2)
+    ok = lambda c: "met" if c else "**not met**"
+    print()
+    print("| goal (issue 7) | measured (mean instructions) | |")
+    print("|---|---:|---|")
+    print(f"| forward evaluation ≤ 40 | {fwd:.0f} | {ok(fwd <= 40)} |")
+    print(f"| inverse ≤ 150 | {inv:.0f} | {ok(inv <= 150)} |")
+    print(f"| non-local memory adds ≤ 60 (`nonlocal_memory_step` − `simulator_step`) | {mem:.0f} | {ok(mem <= 60)} |")
+    print(f"| controller step ≤ 400 | {ctl:.0f} | {ok(ctl <= 400)} |")
+    better = pam < pi and pam_acc[0] <= pi_acc[0]
+    print(
+        f"| fewer instructions than PI-16 at equal or better held-out RMS | "
+        f"{pam:.0f} vs {pi:.0f}; RMS {100 * pam_acc[0]:.3f} % vs {100 * pi_acc[0]:.3f} % | {ok(better)} |"
+    )
 
 if mode == "--update":
     with open(baseline_path, "w") as f:

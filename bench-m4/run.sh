@@ -1,8 +1,14 @@
 #!/usr/bin/env bash
-# Executed-instruction counts per call on Cortex-M4F (QEMU netduinoplus2 + the
-# insn_count TCG plugin). Prints a Markdown table; with --check, fails when a
-# count regresses by more than 10 % against bench-m4/baseline.tsv; with
-# --update, rewrites that file.
+# Everything in one command:
+# 1. on the host, identify the baselines (and pam-core) on host-sim's
+#    characterisation run: writes bench-m4/src/identified.rs, accuracy.md and
+#    accuracy.tsv (bench-m4/src/bin/identify.rs);
+# 2. build the bench image with those tables and count executed instructions
+#    per call on Cortex-M4F (QEMU netduinoplus2 + the insn_count TCG plugin);
+# 3. print the instruction table, the per-model summary (cost, code and RAM
+#    bytes, held-out accuracy) and the accuracy table.
+# With --check, fails when a count regresses by more than 10 % against
+# bench-m4/baseline.tsv; with --update, rewrites that file.
 #
 # Needs: rustup target thumbv7em-none-eabihf and llvm-tools (rust-toolchain.toml),
 # gcc, qemu-system-arm (apt-get install -y qemu-system-arm), python3.
@@ -15,10 +21,10 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 gcc -shared -fPIC -O2 -Wall -Wextra -o "$work/libinsn_count.so" "$here/plugin/insn_count.c"
+(cd "$root" && cargo run -q -p bench-m4 --features host --bin identify --release >/dev/null)
 (cd "$root" && cargo build -q -p bench-m4 --target thumbv7em-none-eabihf --release --features chip)
 elf=$target_dir/thumbv7em-none-eabihf/release/bench-m4
 nm=$(ls "$(rustc --print sysroot)"/lib/rustlib/*/bin/llvm-nm | head -n1)
-size=$(ls "$(rustc --print sysroot)"/lib/rustlib/*/bin/llvm-size | head -n1)
 start=$("$nm" "$elf" | awk '/ bench_marker_start$/ {print "0x"$1}')
 end=$("$nm" "$elf" | awk '/ bench_marker_end$/ {print "0x"$1}')
 
@@ -27,4 +33,11 @@ timeout 300 qemu-system-arm -machine netduinoplus2 -nographic -monitor none -ser
   -plugin "$work/libinsn_count.so,start=$start,end=$end" >"$work/out.txt" 2>"$work/regions.txt"
 
 "$nm" --print-size --size-sort --radix=d "$elf" >"$work/symbols.txt"
-python3 "$here/report.py" "$work/out.txt" "$work/regions.txt" "$work/symbols.txt" "$here/baseline.tsv" "$mode"
+objdump=$(ls "$(rustc --print sysroot)"/lib/rustlib/*/bin/llvm-objdump | head -n1)
+"$objdump" -d --no-show-raw-insn "$elf" >"$work/disasm.txt"
+python3 "$here/report.py" "$work/out.txt" "$work/regions.txt" "$work/symbols.txt" "$here/baseline.tsv" "$mode" \
+  "$work/disasm.txt" "$here/accuracy.tsv"
+echo
+echo "Held-out accuracy (bench-m4/accuracy.md):"
+echo
+cat "$here/accuracy.md"

@@ -1,15 +1,30 @@
 //! The bench image: runs each measured call between two marker functions; the
 //! `insn_count` QEMU plugin counts the instructions executed in between.
 //! Names go out through semihosting in the same order as the plugin's regions.
+//!
+//! Every measured call goes through one `#[no_mangle] #[inline(never)]`
+//! function `bench_<group>` (the `empty` group calls an empty one), so the
+//! call overhead is subtracted with the markers' and the code reachable from
+//! each `bench_<group>` is attributable (report.py sums it from the
+//! disassembly). The image also prints `ram <model> <bytes>` (state and
+//! coefficients that live in RAM) and `table <model> <bytes>` (constant
+//! per-load tables in flash).
 #![no_std]
 #![no_main]
 
 use core::hint::black_box;
+use core::mem::size_of;
 use core::sync::atomic::{AtomicU32, Ordering};
 
+use bench_m4::identified::{MEMORY_SHAPE, PAM_PARAMS, PI16, PREISACH16};
+use bench_m4::{PiTable, PrandtlIshlinskii, Preisach, PreisachTable};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use pam_core::{Branch, Coeffs, Params, Tracker, TrackerConfig};
+use firmware::controller::{Controller, ControllerConfig, Io};
+use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
+use firmware::plant::{SimBus, SimContraction, SimLoad, SimPressure, SimPwm};
+use pam_core::effects::{Effects, NonLocalMemory, Simulator};
+use pam_core::{Branch, Coeffs, LoadModel, Tracker, TrackerConfig};
 
 static STARTS: AtomicU32 = AtomicU32::new(0);
 static ENDS: AtomicU32 = AtomicU32::new(0);
@@ -45,11 +60,99 @@ fn group<T: Copy, R>(name: &str, inputs: &[T], mut f: impl FnMut(T) -> R) {
     }
 }
 
+fn fail(why: &str) -> ! {
+    hprintln!("{}", why);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {}
+}
+
+// ---- the measured functions: one symbol each ----
+
+type Pi16 = PrandtlIshlinskii<16>;
+type Pi16Table = PiTable<16, 6>;
+type Preisach16 = Preisach<16>;
+type Preisach16Table = PreisachTable<16, 6>;
+type SimIo<'a> =
+    Io<SimPressure<'a>, SimContraction<'a>, SimLoad<'a>, ValvePair<SimPwm<'a>, SimPwm<'a>>>;
+
+#[no_mangle]
+#[inline(never)]
+fn bench_empty(x: f32) -> f32 {
+    x
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_forward_contraction(m: &LoadModel, x: f32) -> f32 {
+    m.pressure_mpa(x, Branch::Contraction)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_forward_expansion(m: &LoadModel, x: f32) -> f32 {
+    m.pressure_mpa(x, Branch::Expansion)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_inverse_contraction(m: &LoadModel, p: f32) -> f32 {
+    m.contraction(p, Branch::Contraction)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_inverse_expansion(m: &LoadModel, p: f32) -> f32 {
+    m.contraction(p, Branch::Expansion)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_tracker_update(t: &mut Tracker, c: &Coeffs, drive: f32, load_n: f32) -> bool {
+    t.update(c, drive, load_n).branch_switch.is_some()
+}
+
+/// The paper's model as a pressure-driven predictor: tracker + branch inverse.
+#[no_mangle]
+#[inline(never)]
+fn bench_paper_model_step(t: &mut Tracker, c: &Coeffs, p: f32, load_n: f32) -> f32 {
+    t.update(c, p, load_n);
+    t.model().contraction(p, t.branch())
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_simulator_step(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) -> f32 {
+    s.step(t_s, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_nonlocal_memory_step(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) -> f32 {
+    s.step(t_s, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_pi16_step(m: &mut Pi16, t: &Pi16Table, p: f32, load_n: f32) -> f32 {
+    m.step(t, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_preisach16_step(m: &mut Preisach16, t: &Preisach16Table, p: f32, load_n: f32) -> f32 {
+    m.step(t, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_controller_step(c: &mut Controller, io: &mut SimIo<'_>, x_ref: f32) -> f32 {
+    c.step(io, x_ref).pressure_cmd_mpa
+}
+
 #[entry]
 fn main() -> ! {
-    let Ok(coeffs) = Coeffs::new(Params::DEFAULT) else {
-        debug::exit(debug::EXIT_FAILURE);
-        loop {}
+    let Ok(coeffs) = Coeffs::new(PAM_PARAMS) else {
+        fail("PAM_PARAMS refused");
     };
     let model = coeffs.load_model_clamped(200.0);
     // The hardware square root must agree with the host's: at u = 0.6 of the
@@ -58,38 +161,13 @@ fn main() -> ! {
     let x = model.root_contraction() + half * 1.6;
     let want = 0.8 * model.ellipse_height_mpa();
     if (model.offset_mpa(x) - want).abs() > 1e-6 {
-        hprintln!("sqrt self-check failed");
-        debug::exit(debug::EXIT_FAILURE);
+        fail("sqrt self-check failed");
     }
     let stroke = [
         0.0f32, 0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.14, 0.16, 0.18, 0.20, 0.22, 0.24, 0.01, 0.11,
         0.21,
     ];
     let pressures: [f32; 16] = core::array::from_fn(|i| 0.5 * (i as f32 + 0.5) / 16.0);
-
-    group("empty", &[0u8; 8], |x| x);
-    group("forward_contraction", &stroke, |x| {
-        model.pressure_mpa(x, Branch::Contraction)
-    });
-    group("forward_expansion", &stroke, |x| {
-        model.pressure_mpa(x, Branch::Expansion)
-    });
-    group("inverse_contraction", &pressures, |p| {
-        model.contraction(p, Branch::Contraction)
-    });
-    group("inverse_expansion", &pressures, |p| {
-        model.contraction(p, Branch::Expansion)
-    });
-
-    let Ok(mut tracker) = Tracker::new(
-        &coeffs,
-        TrackerConfig::DEFAULT_PRESSURE,
-        200.0,
-        Branch::Contraction,
-    ) else {
-        debug::exit(debug::EXIT_FAILURE);
-        loop {}
-    };
     // A triangle of pressure samples with one reversal, at a steady load.
     let drive: [f32; 16] = core::array::from_fn(|i| {
         if i < 8 {
@@ -98,9 +176,155 @@ fn main() -> ! {
             0.17 - 0.01 * (i - 8) as f32
         }
     });
-    group("tracker_update", &drive, |d| {
-        tracker.update(&coeffs, d, 200.0).branch_switch.is_some()
+
+    group("empty", &[0.0f32; 8], bench_empty);
+    group("forward_contraction", &stroke, |x| {
+        bench_forward_contraction(&model, x)
     });
+    group("forward_expansion", &stroke, |x| {
+        bench_forward_expansion(&model, x)
+    });
+    group("inverse_contraction", &pressures, |p| {
+        bench_inverse_contraction(&model, p)
+    });
+    group("inverse_expansion", &pressures, |p| {
+        bench_inverse_expansion(&model, p)
+    });
+
+    let new_tracker = || {
+        Tracker::new(
+            &coeffs,
+            TrackerConfig::DEFAULT_PRESSURE,
+            200.0,
+            Branch::Contraction,
+        )
+        .unwrap_or_else(|_| fail("tracker refused"))
+    };
+    let mut tracker = new_tracker();
+    group("tracker_update", &drive, |d| {
+        bench_tracker_update(&mut tracker, &coeffs, d, 200.0)
+    });
+    let mut tracker = new_tracker();
+    group("paper_model_step", &drive, |p| {
+        bench_paper_model_step(&mut tracker, &coeffs, p, 200.0)
+    });
+
+    // Simulator with and without the non-local memory, inside a minor loop:
+    // 0 → 0.3 → 0.15 → 0.16 MPa unmeasured (two reversals remembered), then
+    // 16 measured samples rising towards 0.3 (the minor loop's curve).
+    let warm = |s: &mut Simulator<16>| -> f32 {
+        let mut t = 0.0f32;
+        for k in 0..=300 {
+            t += 0.02;
+            s.step(t, 0.001 * k as f32, 200.0);
+        }
+        for k in 1..=150 {
+            t += 0.02;
+            s.step(t, 0.3 - 0.001 * k as f32, 200.0);
+        }
+        for k in 1..=10 {
+            t += 0.02;
+            s.step(t, 0.15 + 0.001 * k as f32, 200.0);
+        }
+        t
+    };
+    let minor: [(f32, f32); 16] =
+        core::array::from_fn(|k| (0.02 * (k + 1) as f32, 0.162 + 0.008 * k as f32));
+    let new_sim = |effects| {
+        Simulator::<16>::new(
+            coeffs.clone(),
+            effects,
+            TrackerConfig::DEFAULT_PRESSURE,
+            200.0,
+        )
+        .unwrap_or_else(|_| fail("simulator refused"))
+    };
+    let mut sim = new_sim(Effects::NONE);
+    let t0 = warm(&mut sim);
+    group("simulator_step", &minor, |(dt, p)| {
+        bench_simulator_step(&mut sim, t0 + dt, p, 200.0)
+    });
+    let memory = Effects {
+        memory: Some(NonLocalMemory {
+            shape: MEMORY_SHAPE,
+        }),
+        ..Effects::NONE
+    };
+    let mut sim_mem = new_sim(memory);
+    let t0 = warm(&mut sim_mem);
+    if sim_mem.reversals().len() != 2 {
+        fail("memory warm-up did not leave two reversals");
+    }
+    group("nonlocal_memory_step", &minor, |(dt, p)| {
+        bench_nonlocal_memory_step(&mut sim_mem, t0 + dt, p, 200.0)
+    });
+
+    // Baselines on the same triangle as the tracker, at a steady load.
+    let pi_table = black_box(&PI16);
+    let mut pi = Pi16::new(pi_table, 200.0, 0.0);
+    group("pi16_step", &drive, |p| {
+        bench_pi16_step(&mut pi, pi_table, p, 200.0)
+    });
+    let pr_table = black_box(&PREISACH16);
+    let mut pr = Preisach16::new(pr_table, 200.0, 0.0);
+    group("preisach16_step", &drive, |p| {
+        bench_preisach16_step(&mut pr, pr_table, p, 200.0)
+    });
+
+    // The firmware's controller with the in-memory simulated sensors and
+    // PWM: set-point ramping up then down, sensors a little behind.
+    let Ok(mut ctl) = Controller::new(coeffs.clone(), ControllerConfig::DEFAULT, 200.0) else {
+        fail("controller refused");
+    };
+    let bus = SimBus::new();
+    let cal = PressureCalibration::ADC12_0_1MPA;
+    let Ok(valve) = ValvePair::new(
+        SimPwm(&bus.inlet_duty),
+        SimPwm(&bus.exhaust_duty),
+        ValvePairConfig::DEFAULT,
+    ) else {
+        fail("valve refused");
+    };
+    let mut io = Io {
+        pressure: SimPressure {
+            bus: &bus,
+            calibration: cal,
+        },
+        contraction: SimContraction(&bus),
+        load: SimLoad(&bus),
+        valve,
+    };
+    let refs: [f32; 16] = core::array::from_fn(|i| {
+        if i < 8 {
+            0.08 + 0.004 * i as f32
+        } else {
+            0.108 - 0.004 * (i - 8) as f32
+        }
+    });
+    hprintln!("group controller_step {}", refs.len());
+    for (i, &x_ref) in refs.iter().enumerate() {
+        bus.pressure_counts
+            .set(cal.to_counts(0.15 + 0.002 * i as f32));
+        bus.contraction.set(x_ref - 0.003);
+        bus.load_n.set(200.0 + 0.5 * i as f32);
+        black_box(measure(|| {
+            bench_controller_step(&mut ctl, black_box(&mut io), black_box(x_ref))
+        }));
+        if ctl.fault().is_some() {
+            fail("controller faulted");
+        }
+    }
+
+    hprintln!(
+        "ram paper_model_step {}",
+        size_of::<Coeffs>() + size_of::<Tracker>()
+    );
+    hprintln!("ram nonlocal_memory_step {}", size_of::<Simulator<16>>());
+    hprintln!("ram pi16_step {}", size_of::<Pi16>());
+    hprintln!("table pi16_step {}", size_of::<Pi16Table>());
+    hprintln!("ram preisach16_step {}", size_of::<Preisach16>());
+    hprintln!("table preisach16_step {}", size_of::<Preisach16Table>());
+    hprintln!("ram controller_step {}", size_of::<Controller>());
 
     hprintln!("done");
     debug::exit(debug::EXIT_SUCCESS);
