@@ -592,13 +592,33 @@ pub fn fit_with_progress(
         ));
     }
 
-    // The calibrated load range: robust ends of the record's loads.
-    let loads: Vec<f64> = samples.iter().map(|s| s.load_n).collect();
-    let min_load_n = quantile(loads.clone(), 0.001).unwrap_or(0.0);
-    let max_load_n = quantile(loads, 0.999).unwrap_or(0.0).max(min_load_n);
+    // The calibrated load range: the median loads of the lowest and highest
+    // load bins (a load cell's noise must not move the minimum load, which
+    // is where the critical points are taken).
+    let bin = cfg.load_bin_n;
+    let lowest = samples
+        .iter()
+        .map(|s| (s.load_n / bin).round() as i64)
+        .min();
+    let highest = samples
+        .iter()
+        .map(|s| (s.load_n / bin).round() as i64)
+        .max();
+    let median_in = |key: Option<i64>| {
+        quantile(
+            samples
+                .iter()
+                .filter(|s| Some((s.load_n / bin).round() as i64) == key)
+                .map(|s| s.load_n)
+                .collect(),
+            0.5,
+        )
+        .unwrap_or(0.0)
+    };
+    let min_load_n = median_in(lowest);
+    let max_load_n = median_in(highest).max(min_load_n);
 
     // Enough training samples per load bin and branch?
-    let bin = cfg.load_bin_n;
     let mut groups: std::collections::BTreeMap<i64, [usize; 2]> = Default::default();
     let mut first_line: std::collections::BTreeMap<i64, u64> = Default::default();
     for (i, s) in samples.iter().enumerate() {
@@ -690,38 +710,61 @@ pub fn fit_with_progress(
     let initial = export(&Family::from_theta(&theta0, fixed));
 
     progress(Progress::Stage("least squares"));
-    let problem = Problem {
-        theta: DVector::from_column_slice(&theta0),
-        data: &train,
-        fixed,
-        penalty_weight: 10.0 * (train.len() as f64).sqrt(),
-        slope_scale: pmax / (theta0[1] - theta0[0]).max(1e-3),
-        evaluations: Default::default(),
-        progress,
-    };
-    let (problem, report) = LevenbergMarquardt::new()
-        .with_patience(cfg.patience)
-        .minimize(problem);
-    if !report.termination.was_successful() {
+    // The shape penalty is a hinge with a finite weight, so where the data
+    // pull towards a shape pam-core refuses (a plateau that dips), the
+    // optimum may sit just past the margin: then the weight is raised and
+    // the fit continued from there, until pam-core accepts the parameters.
+    let mut theta = theta0.to_vec();
+    let mut evaluations = 0;
+    let mut last_error = None;
+    let mut outcome = None;
+    for weight in [10.0, 100.0, 1e3, 1e4] {
+        let problem = Problem {
+            theta: DVector::from_column_slice(&theta),
+            data: &train,
+            fixed,
+            penalty_weight: weight * (train.len() as f64).sqrt(),
+            slope_scale: pmax / (theta0[1] - theta0[0]).max(1e-3),
+            evaluations: Default::default(),
+            progress,
+        };
+        let (problem, report) = LevenbergMarquardt::new()
+            .with_patience(cfg.patience)
+            .minimize(problem);
+        evaluations += problem
+            .evaluations
+            .load(std::sync::atomic::Ordering::Relaxed);
         // Running out of patience still leaves the best point found; other
-        // terminations (numerical failure) do not.
-        if !matches!(
-            report.termination,
-            levenberg_marquardt::TerminationReason::LostPatience
-        ) {
+        // unsuccessful terminations are numerical failures.
+        if !report.termination.was_successful()
+            && !matches!(
+                report.termination,
+                levenberg_marquardt::TerminationReason::LostPatience
+            )
+        {
             return Err(FitError::Optimiser {
                 source_name: record.source.clone(),
                 why: format!("{:?}", report.termination),
             });
         }
+        theta = problem.theta.as_slice().to_vec();
+        let params = export(&Family::from_theta(&theta, fixed));
+        match Coeffs::new(params) {
+            Ok(coeffs) => {
+                outcome = Some((params, coeffs, report));
+                break;
+            }
+            Err(error) => last_error = Some((error, params)),
+        }
     }
-    let theta = problem.theta.as_slice().to_vec();
-    let params = export(&Family::from_theta(&theta, fixed));
-    let coeffs = Coeffs::new(params).map_err(|error| FitError::Invalid {
-        source_name: record.source.clone(),
-        error,
-        params,
-    })?;
+    let Some((params, coeffs, report)) = outcome else {
+        let (error, params) = last_error.unwrap_or((pam_core::Error::Singular, initial));
+        return Err(FitError::Invalid {
+            source_name: record.source.clone(),
+            error,
+            params,
+        });
+    };
 
     progress(Progress::Stage("errors"));
     let train_table = error_table(&coeffs, samples, &split.branch, |i| !heldout[i], bin);
@@ -739,9 +782,7 @@ pub fn fit_with_progress(
         test: test_table,
         pmax_source,
         holdout: cfg.holdout,
-        evaluations: problem
-            .evaluations
-            .load(std::sync::atomic::Ordering::Relaxed),
+        evaluations,
         termination: format!("{:?}", report.termination),
         cost: report.objective_function,
         initial,

@@ -57,7 +57,7 @@ pub fn fit_plot(
         }
     }
     let mut bins: Vec<(i64, usize)> = counts.into_iter().collect();
-    bins.sort_by(|a, b| b.1.cmp(&a.1));
+    bins.sort_by_key(|b| std::cmp::Reverse(b.1));
     bins.truncate(8);
     bins.sort();
     let keys: Vec<i64> = bins.iter().map(|b| b.0).collect();

@@ -1,0 +1,148 @@
+//! The command line: bad input gives a located error and a non-zero exit
+//! code and leaves no output behind; good input writes every output.
+
+use std::path::Path;
+use std::process::Command;
+
+use pam_core::Params;
+use pam_lab::synth::{generate, Protocol};
+
+fn pam_lab(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_pam-lab"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn write_record(path: &Path, loads: &[f64]) {
+    let rec = generate(&Params::DEFAULT, &Protocol::quick(loads), 0.001, 0.0008, 5);
+    let mut text = String::from("# generated\nt_s,load_n,pressure_mpa,contraction,note\n");
+    for s in &rec.samples {
+        text.push_str(&format!(
+            "{:.3},{},{:.5},{:.5},x\n",
+            s.t_s, s.load_n, s.pressure_mpa, s.contraction
+        ));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn fit_then_simulate_writes_every_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("rig.csv");
+    write_record(&data, &[100.0, 300.0]);
+    let out = dir.path().join("out");
+    let (ok, stdout, stderr) =
+        pam_lab(&["fit", data.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(stdout.contains("held-out errors"), "{stdout}");
+    assert!(
+        stderr.contains("least squares"),
+        "progress on stderr: {stderr}"
+    );
+    for f in ["model.json", "model.blob", "model_params.rs", "fit.png"] {
+        assert!(out.join(f).metadata().unwrap().len() > 0, "{f}");
+    }
+    let coeffs = pam_core::blob::decode(&std::fs::read(out.join("model.blob")).unwrap()).unwrap();
+    assert!((coeffs.params().points.root_contraction - 0.018).abs() < 2e-3);
+    let sim = dir.path().join("sim.csv");
+    let png = dir.path().join("sim.png");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "simulate",
+        out.join("model.blob").to_str().unwrap(),
+        data.to_str().unwrap(),
+        "-o",
+        sim.to_str().unwrap(),
+        "--plot",
+        png.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let text = std::fs::read_to_string(&sim).unwrap();
+    assert!(text.starts_with(
+        "t_s,load_n,pressure_mpa,measured_contraction,predicted_contraction,error_contraction"
+    ));
+    assert!(png.exists());
+}
+
+#[test]
+fn bad_inputs_fail_with_file_line_and_column_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "t_s,load_n,contraction\n0,100,0.02\n",
+            "bad.csv:1: column `pressure_mpa`: missing",
+        ),
+        (
+            "t_s,load_n,pressure_mpa,contraction\n0,100,0.1,0.02\n0.02,100,abc,0.02\n",
+            "bad.csv:3: column `pressure_mpa`: `abc` is not a number",
+        ),
+        (
+            "t_s,load_n,pressure_mpa,contraction\n0,100,0.1,NaN\n",
+            "bad.csv:2: column `contraction`: value is NaN",
+        ),
+        (
+            "t_s,load_n,pressure_mpa,contraction\n# c\n1,100,0.1,0.02\n0.9,100,0.1,0.02\n",
+            "bad.csv:4: column `t_s`: time goes backwards",
+        ),
+        (
+            "t_s,load_n,pressure_mpa,contraction\n0,100,0.1,1.5\n",
+            "bad.csv:2: column `contraction`: physically impossible",
+        ),
+    ];
+    for (text, want) in cases {
+        let data = dir.path().join("bad.csv");
+        std::fs::write(&data, text).unwrap();
+        let out = dir.path().join("out");
+        let (ok, _, stderr) =
+            pam_lab(&["fit", data.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        assert!(!ok);
+        assert!(stderr.contains(want), "want `{want}` in: {stderr}");
+        assert!(!out.exists(), "no output directory on failure");
+    }
+}
+
+#[test]
+fn too_few_samples_per_load_and_branch_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("one_load.csv");
+    write_record(&data, &[100.0]);
+    let out = dir.path().join("out");
+    let (ok, _, stderr) = pam_lab(&["fit", data.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(!ok);
+    assert!(
+        stderr.contains("one_load.csv: too few samples to identify the model"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn simulate_refuses_a_corrupt_blob_and_keeps_the_old_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("rig.csv");
+    write_record(&data, &[100.0, 300.0]);
+    let blob = dir.path().join("model.blob");
+    let mut bytes = pam_core::blob::encode(&Params::DEFAULT);
+    bytes[30] ^= 4;
+    std::fs::write(&blob, bytes).unwrap();
+    let out = dir.path().join("sim.csv");
+    std::fs::write(&out, "old").unwrap();
+    let (ok, _, stderr) = pam_lab(&[
+        "simulate",
+        blob.to_str().unwrap(),
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(
+        stderr.contains("model.blob") && stderr.contains("CRC"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "old");
+}
