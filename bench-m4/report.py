@@ -68,11 +68,13 @@ for name, chunk in rows.items():
     )
 
 # Symbol sizes and the direct call/branch graph.
-sizes = {}
+sizes, addr_of = {}, {}
 for line in open(symbols_path):
     p = line.split()
     if len(p) == 4:
         sizes[p[3]] = int(p[1])
+        addr_of[p[3]] = int(p[0]) & ~1
+name_at = {}  # address -> the name the disassembly uses (merged functions share one)
 graph = {}
 if disasm_path:
     func = None
@@ -83,23 +85,31 @@ if disasm_path:
         m = head.match(line.strip())
         if m:
             func = m.group(1)
+            func_start = int(line.split()[0], 16)
+            name_at[func_start] = func
             graph.setdefault(func, set())
             continue
         m = insn.match(line)
         if not (m and func):
             continue
+        # Only the function's own bytes (padding and literal pools after it
+        # disassemble as junk branches).
+        if int(line.split(":")[0], 16) >= func_start + sizes.get(func, 1 << 30):
+            continue
         op = m.group(1)
         if not (op.startswith("b") or op.startswith("cb")) or op.startswith(("bic", "bfi", "bfc", "bkpt")):
             continue
         t = target.search(m.group(2))
-        if t and t.group(1) != func:
+        # A call or tail call enters a function at its start (no +offset).
+        if t and t.group(1) != func and not t.group(2):
             graph[func].add(t.group(1))
 
 
-def code_bytes(name):
+def reachable(name):
     root = "bench_" + name
     if root not in sizes or not graph:
         return None
+    root = name_at.get(addr_of.get(root), root)  # an alias of an identical function
     seen, todo = set(), [root]
     while todo:
         f = todo.pop()
@@ -107,7 +117,12 @@ def code_bytes(name):
             continue
         seen.add(f)
         todo.extend(graph.get(f, ()))
-    return sum(sizes.get(f, 0) for f in seen)
+    return seen
+
+
+def code_bytes(name):
+    seen = reachable(name)
+    return None if seen is None else sum(sizes.get(f, 0) for f in seen)
 
 
 stats = {name: (mean, mx, vdiv, vsqrt) for name, mean, mx, vdiv, vsqrt in table}
