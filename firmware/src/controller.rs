@@ -114,6 +114,11 @@ pub enum Fault {
     Setpoint,
     /// The valve driver refused a duty.
     Valve,
+    /// The inlet was commanded (nearly) fully open for
+    /// `supply_loss_periods` periods and the pressure did not rise by
+    /// `supply_loss_rise_mpa`: no supply pressure (compressor off, hose
+    /// off, regulator closed) or a supply too low for the command.
+    SupplyLoss,
 }
 
 impl core::fmt::Display for SensorId {
@@ -135,6 +140,7 @@ impl core::fmt::Display for Fault {
             Fault::Stuck(s) => write!(f, "{s} reading stuck"),
             Fault::Setpoint => f.write_str("set-point not finite"),
             Fault::Valve => f.write_str("valve driver refused a duty"),
+            Fault::SupplyLoss => f.write_str("inlet open but pressure not rising: supply lost"),
         }
     }
 }
@@ -167,6 +173,39 @@ pub struct SafetyConfig {
     pub stuck_samples: u16,
     /// Consecutive good samples before leaving the safe state (≥ 1).
     pub recovery_samples: u16,
+    /// Supply-loss check: a flow command at or above this (in `(0, 1]`)
+    /// counts as "inlet open".
+    ///
+    /// What it mitigates: with the supply gone the inlet cannot fill the
+    /// muscle (with a hose off it even vents it backwards), the error grows
+    /// and the PI drives the inlet to full open; nothing else in the
+    /// monitor notices, since every sensor reads fine. The check turns that
+    /// into [`Fault::SupplyLoss`] and the safe state.
+    ///
+    /// Rule: the command issued in each of the last `supply_loss_periods`
+    /// periods was `≥ supply_loss_flow`, and the pressure now is less than
+    /// `supply_loss_rise_mpa` above the pressure read when the first of them
+    /// was issued (a rise of at least that much restarts the window).
+    ///
+    /// False positives: a supply that is present but at or below the
+    /// pressure the loop asks for (a regulator set below `Pmax` +
+    /// `supply_loss_flow / pressure_gain_per_mpa`) also saturates the inlet
+    /// without a rise, and trips it; at the default 0.95 and 20 /MPa the
+    /// supply must exceed `Pmax` (0.5 MPa) by about 0.05 MPa, the rig's is
+    /// 0.6 MPa. A healthy inlet at full opening fills by far more than
+    /// `supply_loss_rise_mpa` in the window, also while the muscle contracts.
+    ///
+    /// Retry: the sensors are healthy during a supply loss, so control
+    /// resumes after `recovery_samples` good samples like after any fault;
+    /// if the supply is still gone the check trips again one window later
+    /// (a retry every `supply_loss_periods + recovery_samples` periods, with
+    /// the muscle vented in between).
+    pub supply_loss_flow: f32,
+    /// Supply-loss window, control periods; 0 disables the check.
+    pub supply_loss_periods: u16,
+    /// Least pressure rise over the window with the inlet open, MPa (> 0;
+    /// well above the pressure sensor's noise, 0.8 kPa RMS on the rig).
+    pub supply_loss_rise_mpa: f32,
 }
 
 /// Which feedforward the outer loop adds to its PI term.
@@ -242,6 +281,11 @@ impl ControllerConfig {
             load_margin_n: 25.0,
             stuck_samples: 200,
             recovery_samples: 50,
+            // 100 ms at 1 kHz: a 1/8" inlet fills the muscle by tenths of
+            // an MPa in that time; 10 kPa is 12 σ of the sensor noise.
+            supply_loss_flow: 0.95,
+            supply_loss_periods: 100,
+            supply_loss_rise_mpa: 0.01,
         },
     };
 
@@ -291,6 +335,18 @@ impl ControllerConfig {
             return Err(ConfigError::Invalid(
                 "load_margin_n",
                 "must be finite and >= 0 N",
+            ));
+        }
+        if !(s.supply_loss_flow > 0.0 && s.supply_loss_flow <= 1.0) {
+            return Err(ConfigError::Invalid(
+                "supply_loss_flow",
+                "must be in (0, 1]",
+            ));
+        }
+        if !positive(s.supply_loss_rise_mpa) {
+            return Err(ConfigError::Invalid(
+                "supply_loss_rise_mpa",
+                "must be finite and > 0 MPa",
             ));
         }
         if let Feedforward::HysteresisMemory(m) = &self.feedforward {
@@ -415,6 +471,49 @@ impl StuckMonitor {
     }
 }
 
+/// The supply-loss check ([`SafetyConfig::supply_loss_flow`]): how long the
+/// inlet has been commanded open and the pressure when that began.
+#[derive(Clone, Copy, Debug, Default)]
+struct SupplyMonitor {
+    /// Flow command issued by the last update (0 after a safe state).
+    last_flow: f32,
+    /// Pressure read by the last update, MPa.
+    last_mpa: f32,
+    /// Consecutive periods with the inlet commanded open, counting this one.
+    open_periods: u16,
+    /// Pressure read when the first of them was issued, MPa.
+    start_mpa: f32,
+}
+
+impl SupplyMonitor {
+    /// Record the pressure read now; true when the supply is lost by the
+    /// rule of [`SafetyConfig::supply_loss_flow`].
+    fn observe(&mut self, pressure_mpa: f32, s: &SafetyConfig) -> bool {
+        let before = self.last_mpa;
+        self.last_mpa = pressure_mpa;
+        if s.supply_loss_periods == 0 || !(self.last_flow >= s.supply_loss_flow) {
+            self.open_periods = 0;
+            return false;
+        }
+        if self.open_periods == 0 {
+            self.start_mpa = before;
+        }
+        self.open_periods = self.open_periods.saturating_add(1);
+        if pressure_mpa - self.start_mpa >= s.supply_loss_rise_mpa {
+            // Filling: restart the window from here.
+            self.open_periods = 0;
+            return false;
+        }
+        self.open_periods >= s.supply_loss_periods
+    }
+
+    /// The valves went safe (no flow commanded).
+    fn reset(&mut self) {
+        self.last_flow = 0.0;
+        self.open_periods = 0;
+    }
+}
+
 /// State of the [`Feedforward::HysteresisMemory`] feedforward: the reversal
 /// points `(feedforward pressure, desired contraction)` and the extreme of
 /// the current sweep (the next reversal's turning point).
@@ -524,6 +623,7 @@ pub struct Controller {
     fault: Option<Fault>,
     good_run: u16,
     stuck: [StuckMonitor; 3],
+    supply: SupplyMonitor,
     memory: MemoryState,
 }
 
@@ -585,6 +685,7 @@ impl Controller {
             fault: None,
             good_run: 0,
             stuck: [StuckMonitor::default(); 3],
+            supply: SupplyMonitor::default(),
             memory: MemoryState::default(),
         })
     }
@@ -683,6 +784,13 @@ impl Controller {
             self.enter_fault(f, &mut step);
             return step;
         }
+        // The sensors are good here, so the pressure is finite and in range.
+        if let Ok(p) = sample.pressure_mpa {
+            if self.supply.observe(p, &self.config.safety) {
+                self.enter_fault(Fault::SupplyLoss, &mut step);
+                return step;
+            }
+        }
         if let Some(f) = self.fault {
             self.good_run = self.good_run.saturating_add(1);
             if self.good_run < self.config.safety.recovery_samples {
@@ -749,6 +857,7 @@ impl Controller {
         step.feedforward_mpa = feedforward_mpa;
         step.pressure_cmd_mpa = pressure_cmd_mpa;
         step.command = ValveCommand::Flow(flow);
+        self.supply.last_flow = flow;
         step
     }
 
@@ -764,6 +873,7 @@ impl Controller {
         // The safe state vents (or holds) the muscle: its loop history no
         // longer applies; restart on the major loop.
         self.memory.clear();
+        self.supply.reset();
         step.fault = Some(fault);
         step.feedforward_mpa = 0.0;
         step.pressure_cmd_mpa = 0.0;
@@ -822,11 +932,19 @@ mod tests {
         Controller::new(Coeffs::new(Params::DEFAULT).unwrap(), config, 200.0).unwrap()
     }
 
-    /// Constant readings for many samples, without tripping the stuck check.
+    /// Constant readings for many samples, without tripping the stuck check
+    /// or (no plant: the pressure does not follow the valve) the supply check.
     fn no_stuck_check() -> Controller {
+        controller_with(synthetic())
+    }
+
+    /// [`ControllerConfig::DEFAULT`] for synthetic samples: stuck and
+    /// supply-loss checks off.
+    fn synthetic() -> ControllerConfig {
         let mut cfg = ControllerConfig::DEFAULT;
         cfg.safety.stuck_samples = 0;
-        controller_with(cfg)
+        cfg.safety.supply_loss_periods = 0;
+        cfg
     }
 
     fn good(pressure_mpa: f32, contraction: f32, load_n: f32) -> Sample {
@@ -1124,9 +1242,8 @@ mod tests {
             assert_eq!(s.command, ValveCommand::Safe(SafeState::Exhaust));
         }
         // A zero margin is exactly the calibrated range.
-        let mut cfg = ControllerConfig::DEFAULT;
+        let mut cfg = synthetic();
         cfg.safety.load_margin_n = 0.0;
-        cfg.safety.stuck_samples = 0;
         let mut c = controller_with(cfg);
         assert_eq!(c.update(&good(0.2, 0.1, 600.0), 0.1).fault, None);
         assert_eq!(
@@ -1154,8 +1271,7 @@ mod tests {
     }
 
     fn with_feedforward(ff: Feedforward) -> Controller {
-        let mut cfg = ControllerConfig::DEFAULT;
-        cfg.safety.stuck_samples = 0;
+        let mut cfg = synthetic();
         cfg.feedforward = ff;
         controller_with(cfg)
     }
@@ -1250,6 +1366,99 @@ mod tests {
         }
     }
 
+    /// Readings with the muscle short of a far set-point (inlet saturated
+    /// open), the pressure at `p` dithered by a count so nothing is stuck.
+    fn starved(k: u32, p: f32) -> Sample {
+        let d = (k % 2) as f32;
+        good(p + d * 3e-4, 0.02 + (k % 3) as f32 * 1e-4, 200.0 + d)
+    }
+
+    #[test]
+    fn supply_loss_faults_after_the_window_and_retries() {
+        let s = ControllerConfig::DEFAULT.safety;
+        let n = u32::from(s.supply_loss_periods);
+        let mut c = controller();
+        // Update 0 issues the first full-open command; update k sees the
+        // pressure after k open periods. The pressure does not rise.
+        for k in 0..n {
+            let st = c.update(&starved(k, 0.1), 0.15);
+            assert_eq!(st.fault, None, "update {k}");
+            assert!(matches!(st.command, ValveCommand::Flow(f) if f >= s.supply_loss_flow));
+        }
+        let st = c.update(&starved(n, 0.1), 0.15);
+        assert_eq!(st.new_fault, Some(Fault::SupplyLoss));
+        assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+        // Sensors are fine: control retries after the recovery run, and the
+        // check trips again one window later while nothing rises.
+        let r = u32::from(s.recovery_samples);
+        let mut k = n + 1;
+        let mut recovered_at = None;
+        let mut tripped_at = None;
+        while tripped_at.is_none() && k < 10 * n {
+            let st = c.update(&starved(k, 0.1), 0.15);
+            if st.recovered {
+                recovered_at = Some(k);
+            }
+            if st.new_fault == Some(Fault::SupplyLoss) {
+                tripped_at = Some(k);
+            }
+            k += 1;
+        }
+        assert_eq!(recovered_at, Some(n + r));
+        assert_eq!(tripped_at, Some(n + r + n));
+    }
+
+    #[test]
+    fn a_filling_muscle_never_trips_the_supply_check() {
+        let s = ControllerConfig::DEFAULT.safety;
+        let mut c = controller();
+        // Rising by exactly the threshold per window, inlet saturated all along.
+        let per_sample = s.supply_loss_rise_mpa / f32::from(s.supply_loss_periods) * 1.01;
+        let mut open = 0;
+        for k in 0..4000u32 {
+            let p = k as f32 * per_sample;
+            let st = c.update(&starved(k, p), 0.15);
+            assert_eq!(st.fault, None, "update {k} at {p} MPa");
+            if matches!(st.command, ValveCommand::Flow(f) if f >= s.supply_loss_flow) {
+                open += 1;
+            }
+        }
+        assert!(open > 3000, "{open}");
+        // Slower than the threshold: trips.
+        let mut c = controller();
+        let per_sample = s.supply_loss_rise_mpa / f32::from(s.supply_loss_periods) * 0.9;
+        let tripped = (0..4000u32)
+            .map(|k| c.update(&starved(k, 0.1 + k as f32 * per_sample), 0.15))
+            .any(|st| st.fault == Some(Fault::SupplyLoss));
+        assert!(tripped);
+        // Disabled with 0 periods.
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.supply_loss_periods = 0;
+        let mut c = controller_with(cfg);
+        for k in 0..1000u32 {
+            assert_eq!(c.update(&starved(k, 0.1), 0.15).fault, None);
+        }
+    }
+
+    #[test]
+    fn supply_loss_settings_are_validated() {
+        for (flow, rise, field) in [
+            (0.0, 0.01, "supply_loss_flow"),
+            (1.5, 0.01, "supply_loss_flow"),
+            (f32::NAN, 0.01, "supply_loss_flow"),
+            (0.95, 0.0, "supply_loss_rise_mpa"),
+            (0.95, f32::INFINITY, "supply_loss_rise_mpa"),
+        ] {
+            let mut cfg = ControllerConfig::DEFAULT;
+            cfg.safety.supply_loss_flow = flow;
+            cfg.safety.supply_loss_rise_mpa = rise;
+            assert!(
+                matches!(cfg.validate(), Err(ConfigError::Invalid(f, _)) if f == field),
+                "{flow} {rise}"
+            );
+        }
+    }
+
     #[test]
     fn non_finite_set_point_faults() {
         let mut c = controller();
@@ -1259,7 +1468,9 @@ mod tests {
 
     #[test]
     fn frozen_reading_is_stuck_after_the_limit() {
-        let mut c = controller();
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.supply_loss_periods = 0;
+        let mut c = controller_with(cfg);
         let limit = ControllerConfig::DEFAULT.safety.stuck_samples;
         for k in 0..=limit {
             let p = 0.2 + f32::from(k % 3) * 1e-4;

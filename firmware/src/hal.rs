@@ -371,9 +371,15 @@ impl<I: PwmError, E: PwmError> PwmError for PairError<I, E> {
 }
 
 /// An inlet (supply → muscle) and an exhaust (muscle → atmosphere) on/off
-/// valve, each PWM-driven. Never opens both: the valve being closed is
-/// written before the one being opened, so a failed write leaves at most
-/// the previous state, never both open.
+/// valve, each PWM-driven. A flow command never opens both: the valve being
+/// closed is written before the one being opened, so a failed write leaves
+/// at most the previous state, never both open.
+///
+/// The safe state is best effort on both channels: the inlet is closed
+/// first, and a refused inlet write does not stop the exhaust from being
+/// written. With a dead inlet channel left open, venting through the
+/// exhaust lowers the muscle pressure (both open), where stopping at the
+/// failed write would leave the muscle filling to supply pressure.
 #[derive(Debug)]
 pub struct ValvePair<I, E> {
     inlet: I,
@@ -434,10 +440,13 @@ impl<I: SetDutyCycle, E: SetDutyCycle> Valve for ValvePair<I, E> {
     }
 
     fn set_safe(&mut self, state: SafeState) -> Result<(), Self::Error> {
-        match state {
-            SafeState::Exhaust => self.write(0.0, 1.0),
-            SafeState::Hold => self.write(0.0, 0.0),
-        }
+        let exhaust = match state {
+            SafeState::Exhaust => 1.0,
+            SafeState::Hold => 0.0,
+        };
+        let inlet = set_fraction(&mut self.inlet, 0.0).map_err(PairError::Inlet);
+        let exhaust = set_fraction(&mut self.exhaust, exhaust).map_err(PairError::Exhaust);
+        inlet.and(exhaust)
     }
 }
 
@@ -575,6 +584,18 @@ mod tests {
             "the inlet is not opened after the exhaust write failed"
         );
         assert_eq!(v.set_flow(0.5).unwrap_err().kind(), PwmErrorKind::Other);
+        // A dead inlet channel left open: the safe state still opens the exhaust.
+        v.exhaust.fail = false;
+        v.set_flow(1.0).unwrap();
+        v.inlet.fail = true;
+        assert!(matches!(
+            v.set_safe(SafeState::Exhaust),
+            Err(PairError::Inlet(_))
+        ));
+        assert_eq!((v.inlet.duty, v.exhaust.duty), (1000, 1000));
+        v.inlet.fail = false;
+        v.set_safe(SafeState::Exhaust).unwrap();
+        assert_eq!((v.inlet.duty, v.exhaust.duty), (0, 1000));
         let bad = ValvePairConfig {
             deadband: f32::NAN,
             ..ValvePairConfig::DEFAULT

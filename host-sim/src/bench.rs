@@ -3,8 +3,7 @@
 //! and the metrics the scenario tests assert on.
 
 use crate::hal_mocks::{
-    valve_opening, InjectedError, SharedRig, SimContraction, SimLoad, SimPressure, SimPwm,
-    ValveKind,
+    valve_opening, SharedRig, SimContraction, SimLoad, SimPressure, SimPwm, ValveKind,
 };
 use crate::rig::Rig;
 use crate::scenarios::Scenario;
@@ -12,7 +11,7 @@ use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, ValveC
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
 use pam_core::effects::NonLocalMemory;
 use pam_core::{Branch, Coeffs, Params};
-use std::cell::{Cell, RefCell};
+use std::cell::RefCell;
 use std::rc::Rc;
 
 /// Which controller the bench runs.
@@ -207,23 +206,12 @@ pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
     let ctl_cfg = controller_config(mode, cfg);
     let coeffs = Coeffs::new(cfg.params).expect("bench parameters");
     let mut ctl = Controller::new(coeffs, ctl_cfg, load0 as f32).expect("controller config");
-    let no_error: InjectedError = Rc::new(Cell::new(None));
     let inlet = SimPwm::new();
     let exhaust = SimPwm::new();
     let mut io = Io {
-        pressure: SimPressure {
-            rig: rig.clone(),
-            calibration: PressureCalibration::ADC12_0_1MPA,
-            error: no_error.clone(),
-        },
-        contraction: SimContraction {
-            rig: rig.clone(),
-            error: no_error.clone(),
-        },
-        load: SimLoad {
-            rig: rig.clone(),
-            error: no_error,
-        },
+        pressure: SimPressure::new(rig.clone(), PressureCalibration::ADC12_0_1MPA),
+        contraction: SimContraction::new(rig.clone()),
+        load: SimLoad::new(rig.clone()),
         valve: ValvePair::new(inlet.clone(), exhaust.clone(), ValvePairConfig::DEFAULT)
             .expect("valve config"),
     };

@@ -21,6 +21,14 @@ pub type SharedRig = Rc<RefCell<Rig>>;
 /// A sensor failure to inject, shared with the bench.
 pub type InjectedError = Rc<Cell<Option<SensorErrorKind>>>;
 
+/// A reading to inject in place of the rig's (NaN, a frozen value), shared
+/// with the bench.
+pub type InjectedValue = Rc<Cell<Option<f32>>>;
+
+/// The last value a mock returned to the firmware (`None` after an error),
+/// for the bench's records.
+pub type Tap<T> = Rc<Cell<Option<T>>>;
+
 /// The pressure transducer through the firmware's [`PressureSensor`] trait.
 #[derive(Debug)]
 pub struct SimPressure {
@@ -31,6 +39,9 @@ pub struct SimPressure {
     pub calibration: PressureCalibration,
     /// When set, every read fails with this kind.
     pub error: InjectedError,
+    /// The code of the last read. Stuck, open-wire, short and drift faults
+    /// are injected on the rig's transducer (`Rig::pressure_sensor.fault`).
+    pub last_counts: Tap<u16>,
 }
 
 impl ErrorType for SimPressure {
@@ -39,12 +50,15 @@ impl ErrorType for SimPressure {
 
 impl PressureSensor for SimPressure {
     fn read_counts(&mut self) -> Result<Counts, SensorErrorKind> {
+        self.last_counts.set(None);
         if let Some(e) = self.error.get() {
             return Err(e);
         }
         let mut rig = self.rig.borrow_mut();
         let p = rig.chamber.pressure_mpa();
-        Ok(Counts(rig.pressure_sensor.read_code(p)))
+        let code = rig.pressure_sensor.read_code(p);
+        self.last_counts.set(Some(code));
+        Ok(Counts(code))
     }
 
     fn calibration(&self) -> &PressureCalibration {
@@ -59,6 +73,10 @@ pub struct SimContraction {
     pub rig: SharedRig,
     /// When set, every read fails with this kind.
     pub error: InjectedError,
+    /// When set (and no error is), reads return this instead of the rig's value.
+    pub value: InjectedValue,
+    /// The last value read.
+    pub last: Tap<f32>,
 }
 
 impl ErrorType for SimContraction {
@@ -67,12 +85,18 @@ impl ErrorType for SimContraction {
 
 impl ContractionSensor for SimContraction {
     fn read_contraction(&mut self) -> Result<f32, SensorErrorKind> {
+        self.last.set(None);
         if let Some(e) = self.error.get() {
             return Err(e);
         }
         let mut rig = self.rig.borrow_mut();
         let x = rig.muscle.contraction();
-        Ok(rig.contraction_sensor.read(x) as f32)
+        // The rig's sensor is read even when overridden, so its noise
+        // sequence does not depend on the injection.
+        let measured = rig.contraction_sensor.read(x) as f32;
+        let v = self.value.get().unwrap_or(measured);
+        self.last.set(Some(v));
+        Ok(v)
     }
 }
 
@@ -83,6 +107,10 @@ pub struct SimLoad {
     pub rig: SharedRig,
     /// When set, every read fails with this kind.
     pub error: InjectedError,
+    /// When set (and no error is), reads return this instead of the rig's value.
+    pub value: InjectedValue,
+    /// The last value read.
+    pub last: Tap<f32>,
 }
 
 impl ErrorType for SimLoad {
@@ -91,12 +119,52 @@ impl ErrorType for SimLoad {
 
 impl LoadCell for SimLoad {
     fn read_load_n(&mut self) -> Result<f32, SensorErrorKind> {
+        self.last.set(None);
         if let Some(e) = self.error.get() {
             return Err(e);
         }
         let mut rig = self.rig.borrow_mut();
         let l = rig.true_state().load_n;
-        Ok(rig.load_cell.read_n(l) as f32)
+        let measured = rig.load_cell.read_n(l) as f32;
+        let v = self.value.get().unwrap_or(measured);
+        self.last.set(Some(v));
+        Ok(v)
+    }
+}
+
+impl SimPressure {
+    /// The rig's transducer read through `calibration`, nothing injected.
+    pub fn new(rig: SharedRig, calibration: PressureCalibration) -> SimPressure {
+        SimPressure {
+            rig,
+            calibration,
+            error: InjectedError::default(),
+            last_counts: Tap::default(),
+        }
+    }
+}
+
+impl SimContraction {
+    /// The rig's contraction sensor, nothing injected.
+    pub fn new(rig: SharedRig) -> SimContraction {
+        SimContraction {
+            rig,
+            error: InjectedError::default(),
+            value: InjectedValue::default(),
+            last: Tap::default(),
+        }
+    }
+}
+
+impl SimLoad {
+    /// The rig's load cell, nothing injected.
+    pub fn new(rig: SharedRig) -> SimLoad {
+        SimLoad {
+            rig,
+            error: InjectedError::default(),
+            value: InjectedValue::default(),
+            last: Tap::default(),
+        }
     }
 }
 
@@ -219,24 +287,27 @@ mod tests {
         rig.borrow_mut().advance_regulated(0.3, 3.0);
         let err: InjectedError = Rc::new(Cell::new(None));
         let mut p = SimPressure {
-            rig: rig.clone(),
-            calibration: PressureCalibration::ADC12_0_1MPA,
             error: err.clone(),
+            ..SimPressure::new(rig.clone(), PressureCalibration::ADC12_0_1MPA)
         };
         let mpa = p.read_pressure_mpa().unwrap();
         // Offset +3 kPa, noise 0.8 kPa RMS.
         assert!((mpa - 0.303).abs() < 0.005, "{mpa}");
         let mut x = SimContraction {
-            rig: rig.clone(),
             error: err.clone(),
+            ..SimContraction::new(rig.clone())
         };
         let true_x = rig.borrow().muscle.contraction() as f32;
         assert!((x.read_contraction().unwrap() - true_x).abs() < 0.002);
         let mut l = SimLoad {
-            rig: rig.clone(),
             error: err.clone(),
+            ..SimLoad::new(rig.clone())
         };
         assert!((l.read_load_n().unwrap() - 200.0).abs() < 8.0);
+        assert!(p.last_counts.get().is_some() && l.last.get().is_some());
+        l.value.set(Some(f32::NAN));
+        assert!(l.read_load_n().unwrap().is_nan());
+        l.value.set(None);
         err.set(Some(SensorErrorKind::Timeout));
         assert_eq!(p.read_pressure_mpa(), Err(SensorErrorKind::Timeout));
         assert_eq!(x.read_contraction(), Err(SensorErrorKind::Timeout));

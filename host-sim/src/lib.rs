@@ -20,5 +20,6 @@ pub mod sensors;
 pub use characterisation::{characterisation_run, write_samples_csv};
 pub use rig::{Rig, Sample, TrueState};
 pub mod bench;
+pub mod faults;
 pub mod hal_mocks;
 pub mod scenarios;

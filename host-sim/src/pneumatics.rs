@@ -101,6 +101,12 @@ impl Chamber {
         &self.params
     }
 
+    /// Change the supply gauge pressure, MPa (0: supply lost, the inlet
+    /// opens to atmosphere and vents the muscle backwards).
+    pub fn set_supply_mpa(&mut self, supply_mpa: f64) {
+        self.params.supply_mpa = supply_mpa;
+    }
+
     /// Net mass flow into the chamber for `opening`, kg/s.
     pub fn net_flow_kg_s(&self, opening: ValveOpening) -> f64 {
         let p = &self.params;
@@ -134,6 +140,7 @@ impl Chamber {
         if dv != 0.0 && volume_m3 > 0.0 {
             self.pressure_pa *= ((volume_m3 - dv) / volume_m3).powf(n);
         }
+        let before_flow_pa = self.pressure_pa;
         const SUB: usize = 4;
         let h = dt_s / SUB as f64;
         for _ in 0..SUB {
@@ -141,7 +148,10 @@ impl Chamber {
             self.pressure_pa += n * R_AIR * T_SUPPLY_K * q / volume_m3 * h;
         }
         let lo = self.params.exhaust_mpa.min(0.0) * 1e6 + P_ATM_PA;
-        let hi = self.params.supply_mpa * 1e6 + P_ATM_PA;
+        // Flow moves the pressure toward supply or exhaust, never past the
+        // higher of the supply and where it started (after a supply drop the
+        // chamber empties through the flow, not in one step).
+        let hi = (self.params.supply_mpa * 1e6 + P_ATM_PA).max(before_flow_pa);
         self.pressure_pa = self.pressure_pa.clamp(lo * 0.5, hi);
     }
 }

@@ -84,6 +84,12 @@ impl Rig {
         self.load_n = load_n;
     }
 
+    /// Change the supply pressure, MPa gauge (fault injection: 0 is a lost
+    /// supply).
+    pub fn set_supply_mpa(&mut self, supply_mpa: f64) {
+        self.chamber.set_supply_mpa(supply_mpa);
+    }
+
     /// Time, s.
     pub fn t_s(&self) -> f64 {
         self.t_s

@@ -164,6 +164,9 @@ pub struct Simulator<const N: usize> {
     /// Pressure and static contraction at the extreme of the current sweep.
     extreme: Option<Reversal>,
     last_output: f32,
+    /// The branch in use (the tracker's, or the caller's in
+    /// [`Simulator::step_on_branch`]).
+    branch: Branch,
 }
 
 impl<const N: usize> Simulator<N> {
@@ -188,6 +191,7 @@ impl<const N: usize> Simulator<N> {
             last_pressure_mpa: 0.0,
             extreme: None,
             last_output,
+            branch: Branch::Contraction,
         })
     }
 
@@ -225,6 +229,31 @@ impl<const N: usize> Simulator<N> {
     /// ignored by the tracker; a non-finite, backwards or longer than
     /// [`MAX_STEP_S`] time step holds the rate filter and the creep lag.
     pub fn step(&mut self, t_s: f32, pressure_mpa: f32, load_n: f32) -> f32 {
+        self.step_inner(t_s, pressure_mpa, load_n, None)
+    }
+
+    /// As [`Self::step`], but on the `branch` the caller knows (offline, a
+    /// reversal is known at its extreme, while the tracker can only see it
+    /// once the pressure has moved back by its deadband; where the curve is
+    /// flat that delay is a large contraction error). The tracker still
+    /// follows the load.
+    pub fn step_on_branch(
+        &mut self,
+        t_s: f32,
+        pressure_mpa: f32,
+        load_n: f32,
+        branch: Branch,
+    ) -> f32 {
+        self.step_inner(t_s, pressure_mpa, load_n, Some(branch))
+    }
+
+    fn step_inner(
+        &mut self,
+        t_s: f32,
+        pressure_mpa: f32,
+        load_n: f32,
+        branch: Option<Branch>,
+    ) -> f32 {
         let p = if pressure_mpa.is_finite() {
             pressure_mpa
         } else {
@@ -241,6 +270,9 @@ impl<const N: usize> Simulator<N> {
         let dt_ok = dt_s > 0.0 && dt_s <= MAX_STEP_S;
 
         let update = self.tracker.update(&self.coeffs, p, load_n);
+        let branch = branch.unwrap_or(self.tracker.branch());
+        let switched = branch != self.branch;
+        self.branch = branch;
         if update.load_switch.is_some() {
             // The turning points belong to the old load's loop.
             self.stack.clear();
@@ -249,12 +281,11 @@ impl<const N: usize> Simulator<N> {
             self.rate.update(p, if dt_ok { dt_s } else { f32::NAN });
         }
         let scale = self.offset_scale();
-        let branch = self.tracker.branch();
         let model = self.tracker.model();
 
         let x_static = match &self.effects.memory {
             Some(mem) => {
-                if update.branch_switch.is_some() {
+                if switched {
                     if let Some(r) = self.extreme {
                         self.stack.push(r);
                     }
@@ -270,7 +301,7 @@ impl<const N: usize> Simulator<N> {
             (Some(e), Branch::Contraction) => p >= e.pressure_mpa,
             (Some(e), Branch::Expansion) => p <= e.pressure_mpa,
         };
-        if beyond || update.branch_switch.is_some() {
+        if beyond || switched {
             self.extreme = Some(Reversal {
                 pressure_mpa: p,
                 contraction: x_static,
@@ -288,6 +319,11 @@ impl<const N: usize> Simulator<N> {
         let x = clamp(x, model.root_contraction(), model.max_contraction());
         self.last_output = x;
         x
+    }
+
+    /// The branch in use.
+    pub fn branch(&self) -> Branch {
+        self.branch
     }
 
     /// The last predicted contraction.
