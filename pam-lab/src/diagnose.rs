@@ -214,13 +214,85 @@ pub fn holdout_by_load_block(samples: &[Sample]) -> Vec<bool> {
     out
 }
 
+/// Half-width of the centred running median applied to the measured
+/// pressure before it drives the simulation, samples.
+///
+/// Why: where the muscle's curve is flat (around the inflection point) the
+/// contraction moves by 10–20 per MPa, so 0.001 MPa of sensor noise becomes
+/// 0.01–0.02 of simulated contraction, which would swamp every effect. A
+/// median (unlike a mean) keeps pressure steps sharp, so it does not fake a
+/// creep or a lag.
+pub const PRESSURE_MEDIAN_HALF_WIDTH: usize = 4;
+
+/// `samples` with the pressure through a centred running median of
+/// `2·half + 1` samples (shrinking at the ends).
+pub fn denoise_pressure(samples: &[Sample], half: usize) -> Vec<Sample> {
+    let n = samples.len();
+    let mut window = Vec::with_capacity(2 * half + 1);
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(half), (i + half).min(n - 1));
+            window.clear();
+            window.extend(samples[a..=b].iter().map(|s| s.pressure_mpa));
+            window.sort_by(f64::total_cmp);
+            let mut s = samples[i];
+            s.pressure_mpa = window[window.len() / 2];
+            s
+        })
+        .collect()
+}
+
+/// The branch of every sample with hindsight: the tracker's reversals
+/// (deadband `tracker.direction_deadband`) moved back to the extreme of
+/// the sweep they end, where the muscle really turned.
+pub fn hindsight_branches(
+    samples: &[Sample],
+    coeffs: &Coeffs,
+    tracker: TrackerConfig,
+) -> Vec<Branch> {
+    let n = samples.len();
+    let first_load = samples.first().map_or(0.0, |s| s.load_n) as f32;
+    let Ok(mut t) = Tracker::new(coeffs, tracker, first_load, Branch::Contraction) else {
+        return vec![Branch::Contraction; n];
+    };
+    let mut out = Vec::with_capacity(n);
+    let mut sweep_start = 0usize;
+    let mut extreme_at = 0usize;
+    for (i, s) in samples.iter().enumerate() {
+        let before = t.branch();
+        t.update(coeffs, s.pressure_mpa as f32, s.load_n as f32);
+        if t.branch() != before {
+            // The turn was at the sweep's extreme: relabel what followed it.
+            for b in out.iter_mut().take(i).skip(extreme_at + 1) {
+                *b = t.branch();
+            }
+            sweep_start = i;
+            extreme_at = i;
+        } else {
+            let p = s.pressure_mpa;
+            let e = samples[extreme_at].pressure_mpa;
+            let beyond = match before {
+                Branch::Contraction => p > e,
+                Branch::Expansion => p < e,
+            };
+            if beyond || extreme_at < sweep_start {
+                extreme_at = i;
+            }
+        }
+        out.push(t.branch());
+    }
+    out
+}
+
 /// Simulate the model (base `coeffs` plus `effects`) over `samples` from the
-/// measured pressure and load; one predicted contraction per sample.
+/// measured pressure and load, on the given branches (see
+/// [`hindsight_branches`]); one predicted contraction per sample.
 pub fn simulate(
     coeffs: &Coeffs,
     effects: Effects,
     tracker: TrackerConfig,
     samples: &[Sample],
+    branches: &[Branch],
 ) -> Vec<f64> {
     let first_load = samples.first().map_or(0.0, |s| s.load_n) as f32;
     let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, effects, tracker, first_load) else {
@@ -228,7 +300,10 @@ pub fn simulate(
     };
     samples
         .iter()
-        .map(|s| f64::from(sim.step(s.t_s as f32, s.pressure_mpa as f32, s.load_n as f32)))
+        .zip(branches)
+        .map(|(s, &b)| {
+            f64::from(sim.step_on_branch(s.t_s as f32, s.pressure_mpa as f32, s.load_n as f32, b))
+        })
         .collect()
 }
 
@@ -427,17 +502,24 @@ struct Setup<'a> {
     heldout: Vec<bool>,
     train_idx: Vec<usize>,
     regimes: Regimes,
+    branches: Vec<Branch>,
     /// Effective-sample divisor: the base residual's correlation length.
     corr_len: f64,
 }
 
 impl Setup<'_> {
     fn residuals(&self, effects: Effects) -> Vec<f64> {
-        simulate(&self.coeffs, effects, self.tracker, self.samples)
-            .iter()
-            .zip(self.samples)
-            .map(|(x, s)| s.contraction - x)
-            .collect()
+        simulate(
+            &self.coeffs,
+            effects,
+            self.tracker,
+            self.samples,
+            &self.branches,
+        )
+        .iter()
+        .zip(self.samples)
+        .map(|(x, s)| s.contraction - x)
+        .collect()
     }
 
     fn errors(&self, effects: Effects, n_params: usize) -> (ModelErrors, Vec<f64>) {
@@ -674,11 +756,14 @@ pub enum DiagnoseError {
     Data(String),
 }
 
-fn tracker_config(samples: &[Sample]) -> TrackerConfig {
-    let noise = crate::split::noise_std(samples.iter().map(|s| s.pressure_mpa));
+/// Tracker settings for the denoised pressure of a record whose raw
+/// pressure noise is `noise_mpa`: a deadband of three raw sigmas (the median
+/// leaves about 0.4 of the noise, so its peak-to-peak stays inside), at
+/// least 0.002 MPa. A wider band delays every reversal, which where the
+/// curve is flat costs more than the noise it rejects.
+fn tracker_config(noise_mpa: f64) -> TrackerConfig {
     let mut cfg = TrackerConfig::DEFAULT_PRESSURE;
-    // Five noise sigmas, never below the default (0.005 MPa).
-    cfg.direction_deadband = cfg.direction_deadband.max((5.0 * noise) as f32);
+    cfg.direction_deadband = (3.0 * noise_mpa).max(0.002) as f32;
     cfg
 }
 
@@ -692,8 +777,11 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
             samples.len()
         )));
     }
+    let denoised = denoise_pressure(samples, PRESSURE_MEDIAN_HALF_WIDTH);
+    let samples = &denoised;
     let heldout = holdout_by_load_block(samples);
-    let train: Vec<Sample> = samples
+    let train: Vec<Sample> = record
+        .samples
         .iter()
         .zip(&heldout)
         .filter(|(_, h)| !**h)
@@ -704,9 +792,12 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     fit_cfg.holdout = Holdout::None;
     let fit = crate::fit::fit(&train_record, &fit_cfg)?;
     let coeffs = fit.coeffs;
-    let tracker = tracker_config(samples);
+    let tracker = tracker_config(crate::split::noise_std(
+        record.samples.iter().map(|s| s.pressure_mpa),
+    ));
     let train_idx: Vec<usize> = (0..samples.len()).filter(|&i| !heldout[i]).collect();
     let regimes = regimes(samples, &coeffs, tracker);
+    let branches = hindsight_branches(samples, &coeffs, tracker);
     let mut setup = Setup {
         samples,
         coeffs,
@@ -714,6 +805,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         heldout,
         train_idx,
         regimes,
+        branches,
         corr_len: 1.0,
     };
     let base_res = setup.residuals(Effects::NONE);
@@ -762,8 +854,14 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         added.push(best.name);
     }
 
-    let predicted_base = simulate(&setup.coeffs, Effects::NONE, tracker, samples);
-    let predicted_after = simulate(&setup.coeffs, current, tracker, samples);
+    let predicted_base = simulate(
+        &setup.coeffs,
+        Effects::NONE,
+        tracker,
+        samples,
+        &setup.branches,
+    );
+    let predicted_after = simulate(&setup.coeffs, current, tracker, samples, &setup.branches);
     let candidates = rounds
         .first()
         .map(|r| {

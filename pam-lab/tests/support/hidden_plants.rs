@@ -84,15 +84,14 @@ impl Rng {
 pub fn protocol(seed: u64, short: bool) -> Vec<(f64, f64, f64)> {
     let mut out = Vec::new();
     let mut p = 0.0f64;
-    let mut t = 0.0f64;
     let mut rng = Rng(seed ^ 0x5EED);
-    let mut ramp = |out: &mut Vec<(f64, f64, f64)>, p: &mut f64, load: f64, to: f64, rate: f64| {
+    // Time is the sample count over 50 Hz.
+    let ramp = |out: &mut Vec<(f64, f64, f64)>, p: &mut f64, load: f64, to: f64, rate: f64| {
         let n = ((to - *p).abs() / (rate * DT)).ceil().max(1.0) as usize;
         let from = *p;
         for k in 1..=n {
             *p = from + (to - from) * k as f64 / n as f64;
-            out.push((t, load, *p));
-            t += DT;
+            out.push((out.len() as f64 * DT, load, *p));
         }
     };
     for (i, &load) in [100.0, 200.0, 300.0].iter().enumerate() {
@@ -115,8 +114,7 @@ pub fn protocol(seed: u64, short: bool) -> Vec<(f64, f64, f64)> {
         for level in [0.25, 0.4, 0.1] {
             p = level;
             for _ in 0..(8.0 * HZ) as usize {
-                out.push((t, load, p));
-                t += DT;
+                out.push((out.len() as f64 * DT, load, p));
             }
         }
         ramp(&mut out, &mut p, load, 0.0, 0.05);
@@ -235,7 +233,11 @@ pub fn respond(plant: Plant, drive: &[(f64, f64, f64)]) -> Vec<f64> {
                 // Wiping-out: drop closed loops.
                 while turns.len() >= 2 {
                     let target = turns[turns.len() - 2];
-                    let passed = if sign > 0.0 { p > target.0 } else { p < target.0 };
+                    let passed = if sign > 0.0 {
+                        p > target.0
+                    } else {
+                        p < target.0
+                    };
                     if passed {
                         turns.truncate(turns.len() - 2);
                     } else {
