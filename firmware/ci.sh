@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Firmware CI, called by .ci/run: installs what it needs, lints the chip
-# builds, builds the board image and checks it against the size budget, then
+# builds, builds the board image and checks it against the size budget and
+# for panic paths from the control step (firmware/panic-check.sh), then
 # runs the QEMU image (run-pass: exit 0 only when the tracking error stays
 # within the stated bound and the injected fault is caught) and the QEMU
 # image with a corrupt coefficient blob (must be refused at boot).
@@ -35,6 +36,9 @@ if [ "$flash" -gt "$flash_budget" ] || [ "$ram" -gt "$ram_budget" ]; then
   echo "firmware: over the size budget (firmware/size-budget.txt)" >&2
   exit 1
 fi
+
+echo "== firmware: no panic reachable from the control step (board image)"
+bash firmware/panic-check.sh
 
 echo "== firmware: QEMU run-pass (netduinoplus2)"
 timeout 300 cargo fw-qemu

@@ -101,6 +101,29 @@ impl Report {
     }
 }
 
+/// The hardware of the images: the simulated bus's sensors and valve pair.
+pub type SimIo<'a> =
+    Io<SimPressure<'a>, SimContraction<'a>, SimLoad<'a>, ValvePair<SimPwm<'a>, SimPwm<'a>>>;
+
+/// One control period of the images: [`Controller::step`] on [`SimIo`].
+///
+/// Not inlined and exported unmangled as `pam_control_step`, so that
+/// `firmware/panic-check.sh` finds it in the LTO image and checks that no
+/// panic is reachable from it (the whole read → compute → write path, as the
+/// image runs it).
+// `no_mangle` is flagged by the `unsafe_code` lint (symbol clashes); the
+// name is unique to this crate.
+#[allow(unsafe_code)]
+#[no_mangle]
+#[inline(never)]
+pub fn pam_control_step(
+    ctl: &mut Controller,
+    io: &mut SimIo<'_>,
+    desired_contraction: f32,
+) -> Step {
+    ctl.step(io, desired_contraction)
+}
+
 /// Run the scenario with the controller built from `blob` and the given
 /// feedforward; `on_event` sees every step that reports a new fault or a
 /// recovery (the firmware logs them).
@@ -161,7 +184,7 @@ pub fn run(
         } else {
             None
         });
-        let step = ctl.step(&mut io, desired);
+        let step = pam_control_step(&mut ctl, &mut io, desired);
         if step.new_fault.is_some() || step.recovered {
             on_event(k, &step);
         }

@@ -41,7 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let cfg = BenchConfig::default_with_seed(seed);
 
     println!("host-sim: firmware controller on the simulated McKibben rig (seed {seed})");
-    println!("[1/4] characterisation run (isotonic, 100-600 N) ...");
+    println!("[1/5] characterisation run (isotonic, 100-600 N) ...");
     let samples = host_sim::characterisation_run(seed);
     host_sim::write_samples_csv(&out.join("characterisation.csv"), &samples)?;
     report::plot_characterisation(&out.join("characterisation_loops.svg"), &samples)?;
@@ -50,7 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut results: Vec<(Scenario, Run, Run, Run)> = Vec::new();
     let list = scenarios(seed);
     for (i, sc) in list.into_iter().enumerate() {
-        println!("[{}/4] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
+        println!("[{}/5] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
         let pi = run(&sc, Mode::PiOnly, &cfg);
         let ff = run(&sc, Mode::FeedforwardPi, &cfg);
         let mem = run(&sc, Mode::FeedforwardMemoryPi, &cfg);
@@ -145,6 +145,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             100.0 * b / a
         );
     }
+    println!();
+    println!("[5/5] fault injection (host_sim::faults, the runs tests/faults.rs asserts on) ...");
+    let runs: Vec<_> = host_sim::faults::CASES
+        .iter()
+        .map(|&c| host_sim::faults::run_case(c, seed))
+        .collect();
+    let boot = host_sim::faults::boot(&host_sim::faults::corrupt_blob());
+    println!();
+    print!("{}", host_sim::faults::table(&runs, &boot));
     println!();
     println!("Errors are reference minus true contraction (fraction of rest length) after a {:.0} s warm-up.", cfg.warmup_s);
     println!("Output written to {}/", out.display());

@@ -11,7 +11,8 @@ use firmware::ControllerConfig;
 use host_sim::faults::{boot, corrupt_blob, run_case, Case, FaultRun};
 use host_sim::hal_mocks::SimPwm;
 
-const SEED: u64 = 5;
+/// The main job's default seed, so its table shows these runs.
+const SEED: u64 = 1;
 
 /// Tracking bound 1 s or more after recovery (the rig tracks this slow
 /// triangle within ~0.005 when healthy).
