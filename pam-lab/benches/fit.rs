@@ -10,7 +10,7 @@ use pam_lab::synth::{generate, Protocol};
 fn bench(c: &mut Criterion) {
     let loads = [100.0, 200.0, 300.0, 400.0, 500.0, 600.0];
     // The standard protocol is ~185 s per load; choose the rate for ~100k rows.
-    let proto = Protocol::standard(&loads, 0.5, 90.0);
+    let proto = Protocol::standard(&loads, 0.5, 100.0);
     let rec = generate(&Params::DEFAULT, &proto, 0.001, 0.0008, 1);
     let mut csv = String::from("t_s,load_n,pressure_mpa,contraction\n");
     for s in &rec.samples {
