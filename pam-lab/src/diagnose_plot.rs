@@ -54,6 +54,7 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
         * 1.1;
     let t0 = s.first().map_or(0.0, |x| x.t_s);
     let t1 = s.last().map_or(1.0, |x| x.t_s).max(t0 + 1e-3);
+    crate::plot::ensure_font();
     let root = BitMapBackend::new(path, (1600, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let title = format!(
@@ -161,6 +162,7 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
         .map(|&i| s[i].pressure_mpa)
         .fold(0.0f64, f64::max)
         * 1.05;
+    crate::plot::ensure_font();
     let root = BitMapBackend::new(path, (1600, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let panels = root.split_evenly((1, 2));

@@ -70,6 +70,7 @@ pub fn fit_plot(
         "{}: dots data (dark: held out), lines model (thick: contraction, thin: expansion)",
         record.source
     );
+    ensure_font();
     crate::atomic::write_via_path(path, |tmp| {
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
@@ -157,6 +158,7 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
         )
     });
     let emax = sim.iter().map(|s| s.error().abs()).fold(1e-6, f64::max);
+    ensure_font();
     crate::atomic::write_via_path(path, |tmp| {
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
@@ -217,4 +219,33 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
         root.present().map_err(e)?;
         Ok(())
     })
+}
+
+/// Register the bundled DejaVu Sans (`assets/DejaVuSans.ttf`, licence beside
+/// it) as plotters' `sans-serif`, once. Bundling the font keeps the plots free
+/// of system font libraries (fontconfig, freetype), so a fresh machine builds
+/// and draws them with nothing installed.
+pub fn ensure_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let bytes: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        // The font is a fixed, valid file: registration cannot fail at run time
+        // (checked by the test below).
+        let _ =
+            plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes);
+    });
+}
+
+#[cfg(test)]
+mod font_tests {
+    #[test]
+    fn bundled_font_registers() {
+        let bytes: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        assert!(plotters::style::register_font(
+            "sans-serif",
+            plotters::style::FontStyle::Normal,
+            bytes
+        )
+        .is_ok());
+    }
 }
