@@ -23,7 +23,12 @@
 //!    * its BIC on the training part, counted over the effective number of
 //!      independent residuals (`n / τ`, `τ` the residual's correlation length
 //!      in samples), falls by at least [`DiagnoseConfig::min_bic_drop`]
-//!      (default 10, "very strong" on the usual scale).
+//!      (default 10, "very strong" on the usual scale), and
+//!    * its held-out RMS in its own regime (its *signature*: after inner
+//!      reversals for the memory, fast ramps for the rate, holds after steps
+//!      for creep, the worst load for the width) is cut by at least the same
+//!      fraction — a candidate that only helps elsewhere is absorbing some
+//!      other misfit, not showing its effect.
 //!
 //!    Of those that earn it, the one with the lowest held-out RMS is added;
 //!    then the remaining candidates are tried on top of it, until none earns
@@ -262,8 +267,16 @@ pub fn hindsight_branches(
         let before = t.branch();
         t.update(coeffs, s.pressure_mpa as f32, s.load_n as f32);
         if t.branch() != before {
-            // The turn was at the sweep's extreme: relabel what followed it.
-            for b in out.iter_mut().take(i).skip(extreme_at + 1) {
+            // The turn was where the pressure last left its extreme (within
+            // a third of the deadband, the filtered noise): after a hold that
+            // is the hold's last sample, not its noisiest one.
+            let e = samples[extreme_at].pressure_mpa;
+            let tol = f64::from(tracker.direction_deadband) / 3.0;
+            let turn = (sweep_start..i)
+                .rev()
+                .find(|&j| (samples[j].pressure_mpa - e).abs() <= tol)
+                .unwrap_or(extreme_at);
+            for b in out.iter_mut().take(i).skip(turn + 1) {
                 *b = t.branch();
             }
             sweep_start = i;
@@ -443,7 +456,7 @@ pub fn correlation_length(res: &[f64]) -> f64 {
     }
     let mean = res.iter().sum::<f64>() / n as f64;
     let var: f64 = res.iter().map(|r| (r - mean) * (r - mean)).sum::<f64>();
-    if !(var > 0.0) {
+    if var.is_nan() || var <= 0.0 {
         return 1.0;
     }
     for lag in 1..500.min(n - 1) {
@@ -791,7 +804,24 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     let mut fit_cfg = cfg.fit.clone();
     fit_cfg.holdout = Holdout::None;
     let fit = crate::fit::fit(&train_record, &fit_cfg)?;
-    let coeffs = fit.coeffs;
+    // The held-out blocks may go beyond the training loads (the examples'
+    // random loads reach 350 N, the training blocks 300 N): widen the
+    // calibrated range to the record's so the load family extrapolates
+    // linearly (eqs. 17–19) instead of clamping, when the shape stays valid.
+    let record_max_load = samples.iter().map(|s| s.load_n).fold(0.0f64, f64::max) as f32;
+    let mut base_params = fit.params;
+    let coeffs = if record_max_load > base_params.max_load_n {
+        base_params.max_load_n = record_max_load;
+        match Coeffs::new(base_params) {
+            Ok(c) => c,
+            Err(_) => {
+                base_params = fit.params;
+                fit.coeffs
+            }
+        }
+    } else {
+        fit.coeffs
+    };
     let tracker = tracker_config(crate::split::noise_std(
         record.samples.iter().map(|s| s.pressure_mpa),
     ));
@@ -885,7 +915,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         rounds,
         base: base_errors,
         after: current_errors,
-        base_params: fit.params,
+        base_params,
         effects: current,
         heldout_samples,
         train_samples: samples.len() - heldout_samples,
@@ -947,7 +977,10 @@ fn evaluate_candidate(
         rms_before: regime_rms(current_errors),
         rms_after: regime_rms(&errors),
     };
-    let earned = improvement >= cfg.min_improvement && bic_drop >= cfg.min_bic_drop;
+    let signature_cut = 1.0 - signature.rms_after / signature.rms_before;
+    let earned = improvement >= cfg.min_improvement
+        && bic_drop >= cfg.min_bic_drop
+        && signature_cut >= cfg.min_improvement;
     CandidateResult {
         name: kind.name(),
         rms: errors.rms_heldout,
@@ -1030,6 +1063,22 @@ pub fn write_outputs(r: &DiagnoseReport, record: &Record, dir: &Path) -> anyhow:
     f.write_all(b"\n")?;
     crate::diagnose_plot::residual_plot(r, record, &dir.join("residual.png"))?;
     crate::diagnose_plot::loops_plot(r, record, &dir.join("loops.png"))?;
+    Ok(())
+}
+
+/// `pam-lab diagnose DATA --out DIR`: read, diagnose, write the outputs and
+/// print the summary.
+pub fn run_cli(data: &Path, out: &Path) -> anyhow::Result<()> {
+    let record = crate::data::read_csv(data)?;
+    let report = diagnose(&record, &DiagnoseConfig::default())?;
+    write_outputs(&report, &record, out)?;
+    print!("{}", summary(&report));
+    println!(
+        "wrote {}, {}, {}",
+        out.join("report.json").display(),
+        out.join("residual.png").display(),
+        out.join("loops.png").display()
+    );
     Ok(())
 }
 

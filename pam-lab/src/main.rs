@@ -84,6 +84,16 @@ enum Command {
         #[arg(long, default_value_t = TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples)]
         debounce: u16,
     },
+    /// Find where the model and a record disagree, name the missing effect,
+    /// add it, and report the held-out error before and after (report.json,
+    /// residual.png, loops.png; see pam-lab/DIAGNOSE.md).
+    Diagnose {
+        /// Measurement CSV.
+        data: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "pam-lab-diagnose")]
+        out: PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
@@ -131,6 +141,7 @@ fn main() -> ExitCode {
             };
             run_simulate(&model, &data, &out, plot.as_deref(), config)
         }
+        Command::Diagnose { data, out } => pam_lab::diagnose::run_cli(&data, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

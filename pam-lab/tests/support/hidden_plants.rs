@@ -170,6 +170,11 @@ impl Muscle {
 
 fn params_for(plant: Plant) -> Params {
     let mut p = Params::DEFAULT;
+    // Steeper through the middle of the stroke than the default muscle (whose
+    // flat stretch turns 0.001 MPa of noise into 0.015 of contraction), like
+    // the examples' rigs.
+    p.points.tangency.pressure_mpa = 0.17;
+    p.points.inflection.pressure_mpa = 0.28;
     // Each rig's muscle differs a little.
     match plant {
         Plant::None => {}
@@ -269,7 +274,7 @@ pub fn respond(plant: Plant, drive: &[(f64, f64, f64)]) -> Vec<f64> {
             let dx = last_static.map_or(0.0, |s| x - s);
             last_static = Some(x);
             let mut out_x = x;
-            for (d, (a, tau)) in deficits.iter_mut().zip([(0.07, 1.5), (0.05, 6.0)]) {
+            for (d, (a, tau)) in deficits.iter_mut().zip([(0.12, 1.5), (0.08, 6.0)]) {
                 *d = (*d + a * dx) * (-DT / tau).exp();
                 out_x -= *d;
             }
