@@ -1,0 +1,74 @@
+//! `Simulator::step` (pam-core's per-sample model with non-local memory,
+//! rate dependence, creep and load-dependent width) over arbitrary
+//! `(t_s, pressure_mpa, load_n)` samples, with perturbed effect parameters.
+//!
+//! Asserts after every sample: the prediction is finite and inside the
+//! active model's stroke (as `Simulator::step` documents), equals
+//! `last_contraction`, the offset scale is in `[0, MAX_OFFSET_SCALE]`, the
+//! reversal memory holds at most `N` points and the active load is in range.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use pam_core::effects::{
+    Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence, Simulator,
+    MAX_OFFSET_SCALE,
+};
+use pam_fuzz::Floats;
+
+const N: usize = 4;
+
+fuzz_target!(|data: &[u8]| {
+    let mut f = Floats::new(data);
+    let coeffs = f.coeffs();
+    let p = *coeffs.params();
+    let on = f.byte();
+    let effects = Effects {
+        memory: (on & 1 != 0).then(|| NonLocalMemory {
+            shape: f.near(1.0, 2.0),
+        }),
+        rate: (on & 2 != 0).then(|| RateDependence {
+            scale_at_rest: f.near(1.0, 2.0),
+            scale_per_mpa_per_s: f.near(2.0, 2.0),
+        }),
+        creep: (on & 4 != 0).then(|| Creep {
+            gain: f.near(0.3, 2.0),
+            time_constant_s: f.near(2.0, 2.0),
+        }),
+        width: (on & 8 != 0).then(|| LoadDependentWidth {
+            scale_at_min_load: f.near(1.0, 2.0),
+            scale_per_step: f.near(0.2, 2.0),
+        }),
+    };
+    let config = f.tracker_config();
+    let initial_load_n = f.around(p.min_load_n, p.max_load_n);
+    let Ok(mut sim) = Simulator::<N>::new(coeffs, effects, config, initial_load_n) else {
+        return; // effect parameters refused by validation
+    };
+    let mut t_s = 0.0f32;
+    while !f.is_empty() {
+        // Mostly advancing time (the path the rate and creep filters take),
+        // sometimes any value.
+        let sel = f.byte();
+        t_s = if sel % 4 == 0 {
+            f.raw()
+        } else {
+            t_s + f32::from(sel) * 1e-3
+        };
+        let pressure_mpa = f.around(0.0, p.points.max_pressure_mpa);
+        let load_n = f.around(p.min_load_n, p.max_load_n);
+        let x = sim.step(t_s, pressure_mpa, load_n);
+
+        let m = sim.tracker().model();
+        assert!(
+            x.is_finite() && x >= m.root_contraction() && x <= m.max_contraction(),
+            "step({t_s:e}, {pressure_mpa:e}, {load_n:e}) = {x:e} outside [{}, {}]",
+            m.root_contraction(),
+            m.max_contraction()
+        );
+        assert_eq!(x.to_bits(), sim.last_contraction().to_bits());
+        let s = sim.offset_scale();
+        assert!((0.0..=MAX_OFFSET_SCALE).contains(&s), "offset scale {s}");
+        assert!(sim.reversals().len() <= N);
+        assert!(coeffs.load_in_range(sim.tracker().load_n()));
+    }
+});
