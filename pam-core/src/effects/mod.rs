@@ -274,8 +274,11 @@ impl<const N: usize> Simulator<N> {
         let switched = branch != self.branch;
         self.branch = branch;
         if update.load_switch.is_some() {
-            // The turning points belong to the old load's loop.
+            // The turning points belong to the old load's loop, and so does
+            // the sweep's extreme: pushed at the next reversal it would start
+            // a minor loop from a contraction of the old load's curve.
             self.stack.clear();
+            self.extreme = None;
         }
         if self.effects.rate.is_some() {
             self.rate.update(p, if dt_ok { dt_s } else { f32::NAN });
