@@ -22,7 +22,10 @@ trap 'rm -rf "$work"' EXIT
 
 gcc -shared -fPIC -O2 -Wall -Wextra -o "$work/libinsn_count.so" "$here/plugin/insn_count.c"
 (cd "$root" && cargo run -q -p bench-m4 --features host --bin identify --release >/dev/null)
-(cd "$root" && cargo build -q -p bench-m4 --target thumbv7em-none-eabihf --release --features chip)
+# The bench image is built with the firmware's release profile (LTO, one codegen
+# unit: the `fw-*` aliases in .cargo/config.toml), which is what a user flashes.
+(cd "$root" && cargo build -q -p bench-m4 --target thumbv7em-none-eabihf --release --features chip \
+  --config "profile.release.lto = true" --config "profile.release.codegen-units = 1")
 elf=$target_dir/thumbv7em-none-eabihf/release/bench-m4
 nm=$(ls "$(rustc --print sysroot)"/lib/rustlib/*/bin/llvm-nm | head -n1)
 start=$("$nm" "$elf" | awk '/ bench_marker_start$/ {print "0x"$1}')

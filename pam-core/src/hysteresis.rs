@@ -62,12 +62,14 @@ pub struct LoadModel {
     a: f32,
     b: f32,
     c: f32,
-    /// `h_i` of eq. (24).
-    centre: f32,
-    /// `1/ae_i` of eq. (24).
-    inv_half_width: f32,
     /// `be` of eq. (24), MPa.
     height_mpa: f32,
+    /// `h_i` of eq. (24).
+    centre: f32,
+    /// `(be/ae_i)²`, MPa² (`ae_i` of eq. 24): the ellipse in the form
+    /// `y_hys = √((be/ae_i)²·(x − R_i)(Rx_i − x))`, eq. (24) with
+    /// `ae_i² − (x − h_i)² = (x − R_i)(Rx_i − x)`.
+    ellipse_k2: f32,
     max_pressure_mpa: f32,
     /// `INVERSE_INTERVALS / Pmax`: table index per MPa.
     intervals_per_mpa: f32,
@@ -94,9 +96,12 @@ impl LoadModel {
             a: at.cubic.a as f32,
             b: at.cubic.b as f32,
             c: at.cubic.c as f32,
-            centre: (at.cubic.root + half_width) as f32,
-            inv_half_width: (1.0 / half_width) as f32,
             height_mpa: params.ellipse_height_mpa,
+            centre: (at.cubic.root + half_width) as f32,
+            ellipse_k2: {
+                let k = f64::from(params.ellipse_height_mpa) / half_width;
+                (k * k) as f32
+            },
             max_pressure_mpa: params.points.max_pressure_mpa,
             intervals_per_mpa: INVERSE_INTERVALS as f32 / params.points.max_pressure_mpa,
             inverse_table: [[0.0; INVERSE_INTERVALS + 1]; 2],
@@ -226,14 +231,22 @@ impl LoadModel {
     /// eqs. (23)–(24); zero outside `[R_i, Rx_i]`.
     #[inline]
     pub fn offset_mpa(&self, contraction: f32) -> f32 {
-        let u = (contraction - self.centre) * self.inv_half_width;
-        let w = 1.0 - u * u;
+        let w = self.radicand(contraction);
         // Outside the ellipse (and for NaN) the radicand is not positive: no offset.
         if w > 0.0 {
-            self.height_mpa * sqrt(w)
+            sqrt(w)
         } else {
             0.0
         }
+    }
+
+    /// `be²·(1 − (x − h)²/ae²) = (be/ae)²·(x − R_i)(Rx_i − x)`, the square of
+    /// the ellipse offset, eq. (24). In this form it is exactly zero at both
+    /// stroke ends and positive exactly for `R_i < x < Rx_i` (when `be > 0`);
+    /// not positive outside, and NaN for NaN.
+    #[inline(always)]
+    fn radicand(&self, x: f32) -> f32 {
+        self.ellipse_k2 * ((x - self.root) * (self.max_contraction - x))
     }
 
     /// Forward model, eqs. (25) and (26): the pressure that holds `contraction`
@@ -241,8 +254,16 @@ impl LoadModel {
     /// `HMC` for both). Clamped as the module docs say; never NaN.
     #[inline]
     pub fn pressure_mpa(&self, contraction: f32, branch: Branch) -> f32 {
-        let x = clamp(contraction, self.root, self.max_contraction);
-        let p = self.cubic(x) + branch.offset_sign() * self.offset_mpa(x);
+        let w = self.radicand(contraction);
+        let p = if w > 0.0 {
+            // A positive radicand means R_i < x < Rx_i (see `radicand`): the
+            // contraction clamp would not change x, so it is skipped. Finite.
+            self.cubic(contraction) + branch.offset_sign() * sqrt(w)
+        } else {
+            // Outside the ellipse (or NaN, or `be = 0`): no offset, and the
+            // contraction clamped to the stroke as documented.
+            self.cubic(clamp(contraction, self.root, self.max_contraction))
+        };
         clamp(p, 0.0, self.max_pressure_mpa)
     }
 
@@ -250,14 +271,11 @@ impl LoadModel {
     fn branch_and_slope(&self, x: f32, sign: f32) -> (f32, f32) {
         let q = (self.a * x - self.b) * x + self.c;
         let dq = 2.0 * self.a * x - self.b;
-        let u = (x - self.centre) * self.inv_half_width;
-        let w = 1.0 - u * u;
+        let w = self.radicand(x);
         let (y, dy) = if w > 0.0 {
-            let r = sqrt(w);
-            (
-                self.height_mpa * r,
-                -self.height_mpa * u * self.inv_half_width / r,
-            )
+            let y = sqrt(w);
+            // d/dx √(k²(x − R)(Rx − x)) = k²(h − x)/√(…), h = (R + Rx)/2.
+            (y, self.ellipse_k2 * (self.centre - x) / y)
         } else {
             (0.0, 0.0)
         };

@@ -98,8 +98,11 @@ pub struct Tracker {
     config: TrackerConfig,
     branch: Branch,
     /// Extreme of the drive signal since the last reversal (max on the
-    /// contraction branch, min on the expansion branch); None before the first sample.
-    extreme: Option<f32>,
+    /// contraction branch, min on the expansion branch); NaN before the first
+    /// sample (every comparison with it is false: the first finite drive
+    /// becomes the extreme and cannot reverse). A plain `f32` rather than an
+    /// `Option` saves the tag's load, test and store per sample.
+    extreme: f32,
     model: LoadModel,
     candidate_count: u16,
     candidate_sum_n: f32,
@@ -118,7 +121,7 @@ impl Tracker {
         Ok(Tracker {
             config,
             branch,
-            extreme: None,
+            extreme: f32::NAN,
             model: coeffs.load_model_clamped(initial_load_n),
             candidate_count: 0,
             candidate_sum_n: 0.0,
@@ -163,36 +166,31 @@ impl Tracker {
         out
     }
 
+    /// `drive` is finite here (checked by `update`).
     fn update_direction(&mut self, drive: f32) -> Option<Branch> {
-        let Some(extreme) = self.extreme else {
-            self.extreme = Some(drive);
-            return None;
-        };
+        let extreme = self.extreme;
         let band = self.config.direction_deadband;
-        let (new_extreme, reversed) = match self.branch {
-            Branch::Contraction => (
-                if drive > extreme { drive } else { extreme },
-                drive < extreme - band,
-            ),
-            Branch::Expansion => (
-                if drive < extreme { drive } else { extreme },
-                drive > extreme + band,
-            ),
+        // With `extreme` NaN (no sample yet) `reversed` is false and the
+        // `!(…)` tests are true, so the drive becomes the extreme.
+        let (reversed, further) = match self.branch {
+            Branch::Contraction => (drive < extreme - band, !(drive <= extreme)),
+            Branch::Expansion => (drive > extreme + band, !(drive >= extreme)),
         };
         if reversed {
             self.branch = self.branch.opposite();
-            self.extreme = Some(drive);
+            self.extreme = drive;
             Some(self.branch)
         } else {
-            self.extreme = Some(new_extreme);
+            if further {
+                self.extreme = drive;
+            }
             None
         }
     }
 
     fn update_load(&mut self, coeffs: &Coeffs, load_n: f32) -> Option<LoadSwitch> {
-        let active = self.model.load_n();
         let target = coeffs.clamp_load_n(load_n);
-        if (target - active).abs() <= self.config.load_threshold_n {
+        if (target - self.model.load_n()).abs() <= self.config.load_threshold_n {
             self.candidate_count = 0;
             self.candidate_sum_n = 0.0;
             return None;
@@ -202,14 +200,24 @@ impl Tracker {
         if self.candidate_count < self.config.load_debounce_samples {
             return None;
         }
+        Some(self.switch_load(coeffs))
+    }
+
+    /// The rare path of [`update_load`](Self::update_load): rebuild the model
+    /// at the debounced mean load. Out of line so that the per-sample path
+    /// does not carry the model's stack frame (about 560 bytes) and copy.
+    #[cold]
+    #[inline(never)]
+    fn switch_load(&mut self, coeffs: &Coeffs) -> LoadSwitch {
+        let active = self.model.load_n();
         let to_n = coeffs.clamp_load_n(self.candidate_sum_n / f32::from(self.candidate_count));
         self.candidate_count = 0;
         self.candidate_sum_n = 0.0;
         self.model = coeffs.load_model_clamped(to_n);
-        Some(LoadSwitch {
+        LoadSwitch {
             from_n: active,
             to_n,
-        })
+        }
     }
 }
 
