@@ -451,23 +451,48 @@ pub struct Step {
 }
 
 /// Consecutive identical readings of one sensor.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct StuckMonitor {
-    last_bits: Option<u32>,
+    /// Bits of the last finite reading; a NaN pattern before the first one
+    /// (only finite readings are observed, so it never matches). A plain
+    /// `u32` rather than an `Option` saves the tag's test and store.
+    last_bits: u32,
     repeats: u16,
 }
 
+impl Default for StuckMonitor {
+    fn default() -> Self {
+        StuckMonitor {
+            last_bits: f32::NAN.to_bits(),
+            repeats: 0,
+        }
+    }
+}
+
 impl StuckMonitor {
-    /// Record `v`; true when it has repeated more than `limit` times (never when `limit` is 0).
+    /// Record the finite `v`; true when it has repeated more than `limit`
+    /// times. `limit` is [`stuck_limit`]'s form of `stuck_samples`
+    /// (`u16::MAX` for 0, which `repeats`, saturating, never exceeds).
+    #[inline(always)]
     fn observe(&mut self, v: f32, limit: u16) -> bool {
         let bits = v.to_bits();
-        if self.last_bits == Some(bits) {
+        if self.last_bits == bits {
             self.repeats = self.repeats.saturating_add(1);
         } else {
-            self.last_bits = Some(bits);
+            self.last_bits = bits;
             self.repeats = 0;
         }
-        limit != 0 && self.repeats > limit
+        self.repeats > limit
+    }
+}
+
+/// `stuck_samples` as the bound [`StuckMonitor::observe`] compares with: 0
+/// (check disabled) becomes `u16::MAX`, which a saturating count never exceeds.
+fn stuck_limit(stuck_samples: u16) -> u16 {
+    if stuck_samples == 0 {
+        u16::MAX
+    } else {
+        stuck_samples
     }
 }
 
@@ -625,6 +650,23 @@ pub struct Controller {
     stuck: [StuckMonitor; 3],
     supply: SupplyMonitor,
     memory: MemoryState,
+    /// Derived from `config` and `coeffs` once, at construction (`config`
+    /// is not changed afterwards), so the step does not recompute them.
+    derived: Derived,
+}
+
+/// Per-configuration constants of the step, computed in [`Controller::new`].
+#[derive(Clone, Copy, Debug)]
+struct Derived {
+    /// `ki_mpa_per_s · dt_s`: the integrator gain per step.
+    ki_dt: f32,
+    /// The load's plausible range: the calibrated range widened by
+    /// `load_margin_n`, each bound limited to the finite floats (so an
+    /// infinite reading is never inside it).
+    load_min_n: f32,
+    load_max_n: f32,
+    /// [`stuck_limit`] of `stuck_samples`.
+    stuck_limit: u16,
 }
 
 /// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
@@ -647,7 +689,7 @@ fn check_reading(
     lo: f32,
     hi: f32,
     stuck: &mut StuckMonitor,
-    stuck_samples: u16,
+    stuck_limit: u16,
 ) -> Option<Fault> {
     let v = match reading {
         Ok(v) => v,
@@ -656,7 +698,7 @@ fn check_reading(
     if !v.is_finite() {
         return Some(Fault::NonFinite(sensor));
     }
-    if stuck.observe(v, stuck_samples) {
+    if stuck.observe(v, stuck_limit) {
         return Some(Fault::Stuck(sensor));
     }
     if !(v >= lo && v <= hi) {
@@ -677,7 +719,16 @@ impl Controller {
         config.validate()?;
         let tracker = Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
             .map_err(ConfigError::Tracker)?;
+        let p = coeffs.params();
+        let s = &config.safety;
+        let derived = Derived {
+            ki_dt: config.ki_mpa_per_s * config.dt_s,
+            load_min_n: clamp(p.min_load_n - s.load_margin_n, f32::MIN, f32::MAX),
+            load_max_n: clamp(p.max_load_n + s.load_margin_n, f32::MIN, f32::MAX),
+            stuck_limit: stuck_limit(s.stuck_samples),
+        };
         Ok(Controller {
+            derived,
             coeffs,
             config,
             tracker,
@@ -739,7 +790,7 @@ impl Controller {
         V: Valve,
     {
         let sample = Sample::read(&mut io.pressure, &mut io.contraction, &mut io.load);
-        let mut step = self.update(&sample, desired_contraction);
+        let mut step = self.update_inline(&sample, desired_contraction);
         let written = match step.command {
             ValveCommand::Flow(c) => io.valve.set_flow(c),
             ValveCommand::Safe(s) => io.valve.set_safe(s),
@@ -760,6 +811,14 @@ impl Controller {
     /// the valve command to apply. [`step`](Self::step) is `Sample::read`,
     /// this, and the valve write.
     pub fn update(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
+        self.update_inline(sample, desired_contraction)
+    }
+
+    /// [`update`](Self::update), inlined into [`step`](Self::step) so that
+    /// the sample is not stored to memory and read back, and the step is
+    /// built in place.
+    #[inline(always)]
+    fn update_inline(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
         let load_n = sample.load_n.unwrap_or(f32::NAN);
         let tracker = self
             .tracker
@@ -843,7 +902,7 @@ impl Controller {
         if !windup {
             // Clamp: the integral term to ±integral_limit_mpa.
             self.integral_mpa = clamp(
-                self.integral_mpa + cfg.ki_mpa_per_s * error * cfg.dt_s,
+                self.integral_mpa + self.derived.ki_dt * error,
                 -cfg.integral_limit_mpa,
                 cfg.integral_limit_mpa,
             );
@@ -883,9 +942,48 @@ impl Controller {
     /// The first fault in this sample, in the order pressure, contraction,
     /// load, set-point. Every sensor is checked every step so that each stuck
     /// counter sees every sample.
+    ///
+    /// Fast path: when all three reads succeeded and every reading is inside
+    /// its plausible range (finite bounds, so the reading is finite too) and
+    /// the set-point is finite, the only possible faults are stuck readings;
+    /// each counter observes its reading, as in the full check. Anything
+    /// else goes to [`check_full`](Self::check_full), which gives the same
+    /// answer as before for every sample.
+    #[inline(always)]
     fn check(&mut self, sample: &Sample, desired_contraction: f32) -> Option<Fault> {
         let s = &self.config.safety;
-        let p = self.coeffs.params();
+        let d = &self.derived;
+        if let (Ok(p), Ok(x), Ok(l)) = (sample.pressure_mpa, sample.contraction, sample.load_n) {
+            let inside = |v: f32, lo: f32, hi: f32| v >= lo && v <= hi;
+            if inside(p, s.pressure_min_mpa, s.pressure_max_mpa)
+                && inside(x, s.contraction_min, s.contraction_max)
+                && inside(l, d.load_min_n, d.load_max_n)
+                && desired_contraction.is_finite()
+            {
+                let [sp, sx, sl] = &mut self.stuck;
+                let stuck_p = sp.observe(p, d.stuck_limit);
+                let stuck_x = sx.observe(x, d.stuck_limit);
+                let stuck_l = sl.observe(l, d.stuck_limit);
+                return if stuck_p {
+                    Some(Fault::Stuck(SensorId::Pressure))
+                } else if stuck_x {
+                    Some(Fault::Stuck(SensorId::Contraction))
+                } else if stuck_l {
+                    Some(Fault::Stuck(SensorId::Load))
+                } else {
+                    None
+                };
+            }
+        }
+        self.check_full(sample, desired_contraction)
+    }
+
+    /// Every check of every reading, in order (the path of a bad sample).
+    #[cold]
+    #[inline(never)]
+    fn check_full(&mut self, sample: &Sample, desired_contraction: f32) -> Option<Fault> {
+        let s = &self.config.safety;
+        let d = self.derived;
         let [sp, sx, sl] = &mut self.stuck;
         let pressure = check_reading(
             SensorId::Pressure,
@@ -893,7 +991,7 @@ impl Controller {
             s.pressure_min_mpa,
             s.pressure_max_mpa,
             sp,
-            s.stuck_samples,
+            d.stuck_limit,
         );
         let contraction = check_reading(
             SensorId::Contraction,
@@ -901,7 +999,7 @@ impl Controller {
             s.contraction_min,
             s.contraction_max,
             sx,
-            s.stuck_samples,
+            d.stuck_limit,
         );
         // The load's plausible range is the calibrated range of the model
         // family widened by the margin; inside the margin the tracker clamps
@@ -909,10 +1007,10 @@ impl Controller {
         let load = check_reading(
             SensorId::Load,
             sample.load_n,
-            p.min_load_n - s.load_margin_n,
-            p.max_load_n + s.load_margin_n,
+            d.load_min_n,
+            d.load_max_n,
             sl,
-            s.stuck_samples,
+            d.stuck_limit,
         );
         let setpoint = (!desired_contraction.is_finite()).then_some(Fault::Setpoint);
         pressure.or(contraction).or(load).or(setpoint)
