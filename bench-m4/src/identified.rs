@@ -12,16 +12,16 @@ pub const PAM_PARAMS: Params = Params {
     max_load_n: 600.0,
     load_step_n: 100.0,
     points: CriticalPoints {
-        root_contraction: 0.016624773,
-        max_contraction: 0.18532918,
+        root_contraction: 0.015128749,
+        max_contraction: 0.22980002,
         max_pressure_mpa: 0.5009666,
-        tangency: Point { contraction: 0.056142706, pressure_mpa: 0.17739084 },
-        inflection: Point { contraction: 0.09566064, pressure_mpa: 0.20401482 },
+        tangency: Point { contraction: 0.06817602, pressure_mpa: 0.19339325 },
+        inflection: Point { contraction: 0.1212233, pressure_mpa: 0.24299672 },
     },
-    root_regression_per_step: 0.0043323985,
-    max_regression_per_step: 0.008498877,
-    c_growth_per_step: 0.24052809,
-    ellipse_height_mpa: 0.028814375,
+    root_regression_per_step: 0.0053453734,
+    max_regression_per_step: 0.01637929,
+    c_growth_per_step: 0.15475738,
+    ellipse_height_mpa: 0.030228477,
 };
 
 /// Shape of the non-local memory (chosen on the training samples).
