@@ -43,8 +43,9 @@ impl Coeffs {
     ///
     /// Refuses non-finite values, empty or inverted ranges, critical points
     /// outside `(R1, Rx1)`, and any parameter set whose constraint model loses
-    /// the paper's shape (one real root, increasing on `[R_i, Rx_i]`) at one
-    /// of [`SHAPE_CHECK_LOADS`] loads across the calibrated range.
+    /// the paper's shape (one real root, increasing on `[R_i, Rx_i]`), or
+    /// whose stroke leaves `-1 < R_i < Rx_i < 1`, at one of
+    /// [`SHAPE_CHECK_LOADS`] loads across the calibrated range.
     pub fn new(params: Params) -> Result<Coeffs, Error> {
         check_finite(&params)?;
         let p = &params.points;
@@ -106,7 +107,22 @@ impl Coeffs {
         for k in 0..SHAPE_CHECK_LOADS {
             let load_n = params.min_load_n + span * (k as f32) / ((SHAPE_CHECK_LOADS - 1) as f32);
             let at = coeffs.load_cubic(load_n);
-            if !(at.max_contraction > at.cubic.root) {
+            // The bounds checked above at the minimum load hold at every load
+            // (huge regressions put R_i and Rx_i at ±1e13), and the stroke is
+            // non-empty in the f32 the model evaluates in (fuzz: blob_decode).
+            if !(at.cubic.root > -1.0) {
+                return Err(Error::OutOfRange(
+                    "root_regression_per_step",
+                    "R_i falls to -1 inside the load range",
+                ));
+            }
+            if !(at.max_contraction < 1.0) {
+                return Err(Error::OutOfRange(
+                    "max_regression_per_step",
+                    "Rx_i reaches 1 inside the load range",
+                ));
+            }
+            if !(at.max_contraction as f32 > at.cubic.root as f32) {
                 return Err(Error::OutOfRange(
                     "max_regression_per_step",
                     "Rx_i falls to R_i inside the load range",
