@@ -62,7 +62,7 @@ pub struct BenchConfig {
 /// Integrator limit of the PI-only baseline, MPa: `Pmax` of
 /// `Params::DEFAULT`, so that the integral alone can hold any pressure the
 /// model covers (the command is clamped to `[0, Pmax]` anyway).
-pub const PI_ONLY_INTEGRAL_LIMIT_MPA: f32 = 0.5;
+pub const PI_ONLY_INTEGRAL_LIMIT_MPA: f32 = Params::DEFAULT.points.max_pressure_mpa;
 
 impl BenchConfig {
     /// pam-core's default model, the firmware's default configuration,

@@ -32,6 +32,7 @@ fn range(values: impl Iterator<Item = f64>, pad: f64) -> std::ops::Range<f64> {
 /// Tracking, pressure and load over time for the feedforward and PI-only runs
 /// of one scenario: three stacked panels.
 pub fn plot_scenario(path: &Path, title: &str, ff: &Run, pi: &Run) -> Result<(), ReportError> {
+    ensure_font();
     let root = SVGBackend::new(path, (1100, 900)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(title, ("sans-serif", 22))?;
@@ -147,6 +148,7 @@ pub fn plot_scenario(path: &Path, title: &str, ff: &Run, pi: &Run) -> Result<(),
 /// Pressure–contraction loops of a closed-loop run (true chamber pressure
 /// against true contraction after the warm-up), like the paper's Figs. 6–8.
 pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<(), ReportError> {
+    ensure_font();
     let root = SVGBackend::new(path, (800, 650)).into_drawing_area();
     root.fill(&WHITE)?;
     let pts: Vec<(f64, f64)> = run
@@ -195,6 +197,7 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
 /// The characterisation run's loops, one colour per load (like the paper's
 /// Fig. 1 and Fig. 5).
 pub fn plot_characterisation(path: &Path, samples: &[Sample]) -> Result<(), ReportError> {
+    ensure_font();
     let root = SVGBackend::new(path, (900, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut c = ChartBuilder::on(&root)
@@ -236,4 +239,42 @@ pub fn plot_characterisation(path: &Path, samples: &[Sample]) -> Result<(), Repo
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+/// Register pam-lab's bundled DejaVu Sans (`pam-lab/assets/DejaVuSans.ttf`)
+/// as plotters' `sans-serif`, once. With plotters' `ab_glyph` text backend
+/// (which pam-lab enables too, so a workspace build unifies it) nothing is
+/// drawn without a registered font: without this, `cargo build --release`
+/// of the workspace followed by the main job failed with `FontUnavailable`.
+fn ensure_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let bytes: &'static [u8] = include_bytes!("../../pam-lab/assets/DejaVuSans.ttf");
+        // A fixed, valid file: registration cannot fail at run time (the
+        // plots' test below would fail first).
+        let _ =
+            plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes);
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn characterisation_plot_draws_with_text() {
+        let samples: Vec<Sample> = (0..50)
+            .map(|k| Sample {
+                t_s: 0.02 * k as f64,
+                load_n: 100.0,
+                pressure_mpa: 0.01 * k as f64,
+                contraction: 0.02 + 0.004 * k as f64,
+            })
+            .collect();
+        let path = std::env::temp_dir().join(format!("host-sim-plot-{}.svg", std::process::id()));
+        plot_characterisation(&path, &samples).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        let _ = std::fs::remove_file(&path);
+        assert!(svg.contains("<text"), "no text drawn");
+    }
 }

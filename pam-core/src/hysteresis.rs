@@ -357,7 +357,8 @@ mod tests {
                 }
             }
             assert!(m.constraint_pressure_mpa(m.root_contraction()).abs() < 1e-6);
-            assert!((m.constraint_pressure_mpa(m.max_contraction()) - 0.5).abs() < 1e-5);
+            let pmax = Params::DEFAULT.points.max_pressure_mpa;
+            assert!((m.constraint_pressure_mpa(m.max_contraction()) - pmax).abs() < 1e-5);
         }
     }
 
@@ -365,10 +366,11 @@ mod tests {
     fn offset_peaks_at_the_centre_with_the_ellipse_height() {
         let m = model(300.0);
         let mid = 0.5 * (m.root_contraction() + m.max_contraction());
-        assert!((m.offset_mpa(mid) - 0.02).abs() < 1e-6);
+        let be = Params::DEFAULT.ellipse_height_mpa;
+        assert!((m.offset_mpa(mid) - be).abs() < 1e-6);
         let up = m.pressure_mpa(mid, Branch::Contraction);
         let down = m.pressure_mpa(mid, Branch::Expansion);
-        assert!((up - down - 0.04).abs() < 1e-5, "loop height 2·be");
+        assert!((up - down - 2.0 * be).abs() < 1e-5, "loop height 2·be");
     }
 
     #[test]
@@ -382,7 +384,11 @@ mod tests {
     #[test]
     fn inverse_at_branch_ends() {
         let m = model(200.0);
-        assert_eq!(m.contraction(0.5, Branch::Contraction), m.max_contraction());
+        let pmax = Params::DEFAULT.points.max_pressure_mpa;
+        assert_eq!(
+            m.contraction(pmax, Branch::Contraction),
+            m.max_contraction()
+        );
         assert!((m.contraction(0.0, Branch::Contraction) - m.root_contraction()).abs() < 1e-5);
         // The expansion branch rests where it leaves zero pressure.
         let x0 = m.contraction(0.0, Branch::Expansion);

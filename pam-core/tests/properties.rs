@@ -32,7 +32,8 @@ proptest! {
         let m = coeffs().load_model_clamped(load);
         let p = m.pressure_mpa(x, br);
         prop_assert!(p.is_finite());
-        prop_assert!((0.0..=0.5).contains(&p), "p = {p}");
+        let pmax = Params::DEFAULT.points.max_pressure_mpa;
+        prop_assert!((0.0..=pmax).contains(&p), "p = {p}");
         let cm = m.constraint_pressure_mpa(x);
         prop_assert!(cm.is_finite());
         prop_assert!(m.offset_mpa(x).is_finite() && m.offset_mpa(x) >= 0.0);

@@ -332,10 +332,19 @@ impl AtLoad {
     /// `pam_core::LoadModel::pressure_mpa` clamps.
     #[inline]
     fn pressure_and_slope(&self, x: f64, sign: f64) -> (f64, f64) {
+        let inside = x > self.root && x < self.rx;
         let x = x.clamp(self.root, self.rx);
         let q = (self.a * x - self.b) * x + self.c;
         let cm = (x - self.root) * q;
-        let slope = q + (x - self.root) * (2.0 * self.a * x - self.b);
+        // The slope of the function evaluated: zero outside the stroke,
+        // where the clamp holds the pressure at 0 or Pmax. (With the cubic's
+        // slope there, a sample past `Rx` got the small weight of the steep
+        // stroke end, and shrinking `Rx1` below the data cost almost nothing.)
+        let slope = if inside {
+            q + (x - self.root) * (2.0 * self.a * x - self.b)
+        } else {
+            0.0
+        };
         let u = (x - self.centre) * self.inv_half;
         let w = 1.0 - u * u;
         let y = if w > 0.0 { self.be * w.sqrt() } else { 0.0 };

@@ -154,7 +154,7 @@ mod tests {
         std::fs::write(&json, ModelFile::new(Params::DEFAULT, None).to_json()).unwrap();
         assert_eq!(load(&json).unwrap().params(), &Params::DEFAULT);
         let text = std::fs::read_to_string(&json).unwrap();
-        assert!(text.contains("\"max_pressure_mpa\": 0.5"), "{text}");
+        assert!(text.contains("\"max_pressure_mpa\": 0.50096667,"), "{text}");
         let b = dir.path().join("m.blob");
         std::fs::write(&b, blob::encode(&Params::DEFAULT)).unwrap();
         assert_eq!(load(&b).unwrap().params(), &Params::DEFAULT);
@@ -177,8 +177,8 @@ mod tests {
     #[test]
     fn rust_source_reads_back_exactly() {
         let src = rust_source(&Params::DEFAULT, "test");
-        assert!(src.contains("root_contraction: 0.018,"), "{src}");
-        assert!(src.contains("max_pressure_mpa: 0.5,"), "{src}");
+        assert!(src.contains("root_contraction: 0.015123766,"), "{src}");
+        assert!(src.contains("max_pressure_mpa: 0.50096667,"), "{src}");
         assert!(src.contains("min_load_n: 100.0,"), "{src}");
     }
 }

@@ -49,7 +49,8 @@ fn fit_then_simulate_writes_every_output() {
         assert!(out.join(f).metadata().unwrap().len() > 0, "{f}");
     }
     let coeffs = pam_core::blob::decode(&std::fs::read(out.join("model.blob")).unwrap()).unwrap();
-    assert!((coeffs.params().points.root_contraction - 0.018).abs() < 2e-3);
+    let truth = Params::DEFAULT.points.root_contraction;
+    assert!((coeffs.params().points.root_contraction - truth).abs() < 2e-3);
     let sim = dir.path().join("sim.csv");
     let png = dir.path().join("sim.png");
     let (ok, stdout, stderr) = pam_lab(&[

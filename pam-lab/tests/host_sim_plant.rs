@@ -18,7 +18,7 @@ fn characterisation(seed: u64) -> Record {
 
 /// The stated accuracy on the independent plant, held-out every 4th cycle:
 /// contraction RMS below 0.015 of rest length and pressure RMS below
-/// 0.06 MPa (measured: 0.0121 and 0.0469). The plant is a Tondu–Lopez muscle
+/// 0.06 MPa (measured: 0.0109 and 0.0369). The plant is a Tondu–Lopez muscle
 /// with Maxwell-slip friction, not the paper's cubic-plus-ellipse, so this
 /// is the model's structural error, far above the sensor noise (3e-4).
 #[test]
