@@ -2,7 +2,7 @@
 # Run every fuzz target for a given time and print a Markdown table of
 # executions, time and crashes per target.
 #
-#   fuzz/run-all.sh [seconds-per-target]      (default 120)
+#   fuzz/run-all.sh [seconds-per-target [target...]]   (default 120 s, all)
 #
 # Needs nightly and cargo-fuzz (`cargo +nightly install cargo-fuzz --locked`).
 # Not part of CI: CI builds on stable, and libFuzzer needs nightly's
@@ -13,6 +13,7 @@ set -u
 secs="${1:-120}"
 cd "$(dirname "$0")"
 targets=(csv_reader model_file blob_decode core_eval tracker effects)
+if [ $# -gt 1 ]; then targets=("${@:2}"); fi
 logs="target/run-all-logs"
 mkdir -p "$logs"
 
@@ -32,21 +33,24 @@ for t in "${targets[@]}"; do
         >"$logs/$t.log" 2>&1
     rc=$?
     wall=$(( $(date +%s) - start ))
-    execs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$logs/$t.log" | tail -1 | grep -o '[0-9]*$')
-    rate=$(grep -o 'stat::average_exec_per_sec: [0-9]*' "$logs/$t.log" | tail -1 | grep -o '[0-9]*$')
+    execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$logs/$t.log" | tail -1 | grep -o '[0-9]*$')
+    rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$logs/$t.log" | tail -1 | grep -o '[0-9]*$')
+    # libFuzzer's own time ("Done N runs in T second(s)"); after a crash there
+    # is none, and the wall time (which includes any rebuild) is shown.
+    fuzzed=$(grep -o 'Done [0-9]* runs in [0-9]* second' "$logs/$t.log" | tail -1 | awk '{print $5}')
     corpus=$(ls "corpus/$t" | wc -l)
     if [ "$rc" -eq 0 ]; then
         crashes=0
     else
-        art=$(grep -o 'artifacts/[^ ]*' "$logs/$t.log" | head -1)
+        art=$(grep -o 'Test unit written to [^ ]*' "$logs/$t.log" | head -1 | sed 's|.*/fuzz/||')
         crashes="1 (run stopped; ${art:-see $logs/$t.log})"
     fi
-    rows+=("| \`$t\` | ${execs:-?} | ${rate:-?} | ${wall} | ${corpus} | ${crashes} |")
+    rows+=("| \`$t\` | ${execs:-?} | ${rate:-?} | ${fuzzed:-wall ${wall}} | ${corpus} | ${crashes} |")
 done
 
 echo
 echo "$(date -u +%Y-%m-%d), $(nproc) cores, \`cargo +nightly fuzz run <target> -- -max_total_time=$secs -print_final_stats=1\`"
 echo
-echo "| target | executions | exec/s | wall time (s) | corpus files | crashes |"
+echo "| target | executions | exec/s | time (s) | corpus files | crashes |"
 echo "|---|---:|---:|---:|---:|---|"
 printf '%s\n' "${rows[@]}"

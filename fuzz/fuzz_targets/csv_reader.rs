@@ -30,7 +30,11 @@ fuzz_target!(|data: &[u8]| {
         }
         Err(e) => {
             let lines_in_input = data.split(|&b| b == b'\n').count() as u64;
-            assert!(e.line <= lines_in_input, "error line {} of {lines_in_input}", e.line);
+            assert!(
+                e.line <= lines_in_input,
+                "error line {} of {lines_in_input}",
+                e.line
+            );
             let _ = e.to_string();
         }
     }

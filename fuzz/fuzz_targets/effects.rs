@@ -10,8 +10,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use pam_core::effects::{
-    Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence, Simulator,
-    MAX_OFFSET_SCALE,
+    Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence, Simulator, MAX_OFFSET_SCALE,
 };
 use pam_fuzz::Floats;
 

@@ -48,7 +48,10 @@ fuzz_target!(|data: &[u8]| {
         }
         Err(e) => {
             let text = format!("{e:#}");
-            assert!(text.contains(&*path.to_string_lossy()), "error without the file: {text}");
+            assert!(
+                text.contains(&*path.to_string_lossy()),
+                "error without the file: {text}"
+            );
         }
     }
 });

@@ -181,26 +181,39 @@ pub fn check_model(c: &Coeffs, m: &LoadModel) {
         p.max_load_n
     );
     let (r, rx) = (m.root_contraction(), m.max_contraction());
-    assert!(r.is_finite() && rx.is_finite(), "stroke [{r}, {rx}] not finite");
+    assert!(
+        r.is_finite() && rx.is_finite(),
+        "stroke [{r}, {rx}] not finite"
+    );
     assert!(r < rx, "empty stroke [{r}, {rx}] at {} N", m.load_n());
     assert_eq!(m.max_pressure_mpa(), p.points.max_pressure_mpa);
 }
 
 /// The documented guarantees of the per-sample evaluation at one input:
 /// forward pressure finite and in `[0, Pmax]`, inverse contraction finite and
-/// in `[R_i, Rx_i]`, offset in `[0, be]`.
+/// in `[R_i, Rx_i]`, offset in `[0, be]` (to f32 rounding).
 pub fn check_eval(m: &LoadModel, contraction: f32, pressure_mpa: f32, branch: Branch) {
-    let (r, rx, pmax) = (m.root_contraction(), m.max_contraction(), m.max_pressure_mpa());
+    let (r, rx, pmax) = (
+        m.root_contraction(),
+        m.max_contraction(),
+        m.max_pressure_mpa(),
+    );
     let p = m.pressure_mpa(contraction, branch);
     assert!(
         p.is_finite() && (0.0..=pmax).contains(&p),
         "pressure_mpa({contraction:e}, {branch:?}) = {p:e} outside [0, {pmax}]"
     );
     let cm = m.constraint_pressure_mpa(contraction);
-    assert!(cm.is_finite(), "constraint_pressure_mpa({contraction:e}) = {cm}");
-    let y = m.offset_mpa(contraction);
     assert!(
-        y >= 0.0 && y <= m.ellipse_height_mpa(),
+        cm.is_finite(),
+        "constraint_pressure_mpa({contraction:e}) = {cm}"
+    );
+    let y = m.offset_mpa(contraction);
+    // (be/ae)²·(x − R)(Rx − x) with f32 R, Rx and an f64-derived (be/ae)²
+    // can round a few ulp above be² at the centre (found by this target:
+    // 3.0233322e-2 for be = 3.023332e-2); that is rounding, not a defect.
+    assert!(
+        y >= 0.0 && y <= m.ellipse_height_mpa() * (1.0 + 4.0 * f32::EPSILON),
         "offset_mpa({contraction:e}) = {y:e} outside [0, be]"
     );
     for q in [pressure_mpa, p] {
