@@ -105,7 +105,7 @@ impl EffectKind {
     /// [`Self::apply`].
     fn starts(self) -> Vec<Vec<f64>> {
         match self {
-            EffectKind::NonLocalMemory => vec![vec![logit(0.5 / 50.0)], vec![logit(3.0 / 50.0)]],
+            EffectKind::NonLocalMemory => vec![vec![memory_theta(1.0)], vec![memory_theta(5.0)]],
             EffectKind::RateDependence => vec![
                 vec![logit(1.0 / 4.0), logit(2.0 / 100.0)],
                 vec![logit(0.6 / 4.0), logit(10.0 / 100.0)],
@@ -127,7 +127,7 @@ impl EffectKind {
         match self {
             EffectKind::NonLocalMemory => {
                 e.memory = Some(NonLocalMemory {
-                    shape: (0.05 + 49.95 * sigmoid(t(0))) as f32,
+                    shape: memory_shape(t(0)) as f32,
                 })
             }
             EffectKind::RateDependence => {
@@ -162,6 +162,16 @@ impl EffectKind {
     }
 }
 
+/// The memory's `k` from its unbounded coordinate: logarithmic over
+/// `[0.05, 50]` (the blend is symmetric in `ln k`).
+fn memory_shape(theta: f64) -> f64 {
+    (0.05 * 1000f64.powf(sigmoid(theta))).clamp(0.05, 50.0)
+}
+
+fn memory_theta(shape: f64) -> f64 {
+    logit((shape / 0.05).ln() / 1000f64.ln())
+}
+
 fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
 }
@@ -184,6 +194,9 @@ pub struct DiagnoseConfig {
     pub max_effects: usize,
     /// Iteration budget of each candidate's optimiser (LM patience).
     pub patience: usize,
+    /// Damped Gauss–Newton iterations of the joint base refit
+    /// ([`BASE_REFIT_FIELDS`]); 0 keeps `fit::fit`'s base.
+    pub refit_iterations: usize,
 }
 
 impl Default for DiagnoseConfig {
@@ -194,6 +207,7 @@ impl Default for DiagnoseConfig {
             min_bic_drop: 10.0,
             max_effects: 2,
             patience: 8,
+            refit_iterations: 3,
         }
     }
 }
@@ -247,6 +261,11 @@ pub fn denoise_pressure(samples: &[Sample], half: usize) -> Vec<Sample> {
         .collect()
 }
 
+/// Samples the pressure must stay within the tracker's deadband of a
+/// sweep's extreme for [`hindsight_branches`] to treat it as a hold (1 s at
+/// 50 Hz).
+pub const HOLD_SAMPLES: usize = 50;
+
 /// The branch of every sample with hindsight: the tracker's reversals
 /// (deadband `tracker.direction_deadband`) moved back to the extreme of
 /// the sweep they end, where the muscle really turned.
@@ -268,14 +287,26 @@ pub fn hindsight_branches(
         t.update(coeffs, s.pressure_mpa as f32, s.load_n as f32);
         if t.branch() != before {
             // The turn was where the pressure last left its extreme (within
-            // a third of the deadband, the filtered noise): after a hold that
-            // is the hold's last sample, not its noisiest one.
+            // a third of the deadband, the filtered noise, on a ramp). After
+            // a hold (the pressure within the deadband of its extreme for at
+            // least `HOLD_SAMPLES`) it is the hold's last sample: the hold's
+            // noise dips below a third of the deadband often, and turning
+            // at such a dip starts the other branch early, seconds before a
+            // step.
             let e = samples[extreme_at].pressure_mpa;
-            let tol = f64::from(tracker.direction_deadband) / 3.0;
-            let turn = (sweep_start..i)
-                .rev()
-                .find(|&j| (samples[j].pressure_mpa - e).abs() <= tol)
-                .unwrap_or(extreme_at);
+            let band = f64::from(tracker.direction_deadband);
+            let near = |j: usize, tol: f64| (samples[j].pressure_mpa - e).abs() <= tol;
+            let last_in_band = (sweep_start..i).rev().find(|&j| near(j, band));
+            let held = last_in_band.is_some_and(|j| {
+                j >= sweep_start + HOLD_SAMPLES && (j - HOLD_SAMPLES..=j).all(|k| near(k, band))
+            });
+            let turn = match last_in_band {
+                Some(j) if held => j,
+                _ => (sweep_start..i)
+                    .rev()
+                    .find(|&j| near(j, band / 3.0))
+                    .unwrap_or(extreme_at),
+            };
             for b in out.iter_mut().take(i).skip(turn + 1) {
                 *b = t.branch();
             }
@@ -522,21 +553,24 @@ struct Setup<'a> {
 
 impl Setup<'_> {
     fn residuals(&self, effects: Effects) -> Vec<f64> {
-        simulate(
-            &self.coeffs,
-            effects,
-            self.tracker,
-            self.samples,
-            &self.branches,
-        )
-        .iter()
-        .zip(self.samples)
-        .map(|(x, s)| s.contraction - x)
-        .collect()
+        self.residuals_with(&self.coeffs, effects)
     }
 
-    fn errors(&self, effects: Effects, n_params: usize) -> (ModelErrors, Vec<f64>) {
-        let res = self.residuals(effects);
+    fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
+        simulate(coeffs, effects, self.tracker, self.samples, &self.branches)
+            .iter()
+            .zip(self.samples)
+            .map(|(x, s)| s.contraction - x)
+            .collect()
+    }
+
+    fn errors(
+        &self,
+        coeffs: &Coeffs,
+        effects: Effects,
+        n_params: usize,
+    ) -> (ModelErrors, Vec<f64>) {
+        let res = self.residuals_with(coeffs, effects);
         let (rms_heldout, _) = rms_where(&res, |i| self.heldout[i]);
         let (rms_train, n_train) = rms_where(&res, |i| !self.heldout[i]);
         let n_eff = (n_train as f64 / self.corr_len).max(1.0);
@@ -592,6 +626,7 @@ impl Setup<'_> {
 /// Fitting one candidate's parameters: residuals on the training samples.
 struct CandidateProblem<'s, 'a> {
     setup: &'s Setup<'a>,
+    coeffs: Coeffs,
     kind: EffectKind,
     base: Effects,
     theta: DVector<f64>,
@@ -599,7 +634,9 @@ struct CandidateProblem<'s, 'a> {
 
 impl CandidateProblem<'_, '_> {
     fn residuals_at(&self, theta: &[f64]) -> DVector<f64> {
-        let res = self.setup.residuals(self.kind.apply(self.base, theta));
+        let res = self
+            .setup
+            .residuals_with(&self.coeffs, self.kind.apply(self.base, theta));
         DVector::from_iterator(
             self.setup.train_idx.len(),
             self.setup.train_idx.iter().map(|&i| res[i]),
@@ -676,6 +713,11 @@ pub struct CandidateResult {
     pub effects: Effects,
     /// Full error breakdown.
     pub errors: ModelErrors,
+    /// The base parameters refitted with the candidate on.
+    pub base_params: Params,
+    /// Their coefficients (not serialised).
+    #[serde(skip)]
+    pub coeffs: Coeffs,
 }
 
 /// Whether the improvement sits in the regime the effect explains.
@@ -721,8 +763,13 @@ pub struct DiagnoseReport {
     pub base: ModelErrors,
     /// The final model's errors.
     pub after: ModelErrors,
-    /// The base model's parameters.
+    /// Held-out RMS of the paper's model as `fit::fit` gives it, before the
+    /// base refit on the simulated record.
+    pub rms_paper_fit: f64,
+    /// The base model's parameters (after its refit).
     pub base_params: Params,
+    /// The final model's base parameters (refitted jointly with its effects).
+    pub final_params: Params,
     /// The final model's effects.
     pub effects: Effects,
     /// Samples held out and trained on.
@@ -841,7 +888,21 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     let base_res = setup.residuals(Effects::NONE);
     let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| base_res[i]).collect();
     setup.corr_len = correlation_length(&train_res);
-    let (base_errors, _) = setup.errors(Effects::NONE, 0);
+    let (paper_errors, _) = setup.errors(&setup.coeffs, Effects::NONE, 0);
+    // The base the effects are judged against: the paper's model refitted
+    // on the simulated training record by the same joint refit every
+    // candidate gets, so that a candidate's gain is the effect's, not the
+    // refit's.
+    let (mut model_params, mut model_coeffs) = refit_base(
+        &setup,
+        base_params,
+        setup.coeffs,
+        Effects::NONE,
+        cfg.refit_iterations,
+    );
+    let (base_errors, _) = setup.errors(&model_coeffs, Effects::NONE, 0);
+    let refit_base_params = model_params;
+    let refit_base_coeffs = model_coeffs;
 
     let mut current = Effects::NONE;
     let mut current_errors = base_errors.clone();
@@ -861,6 +922,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
             results.push(evaluate_candidate(
                 &setup,
                 kind,
+                (model_params, model_coeffs),
                 current,
                 &current_errors,
                 current_params,
@@ -880,18 +942,20 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         let Some(best) = best else { break };
         current = best.effects;
         current_errors = best.errors;
+        model_params = best.base_params;
+        model_coeffs = best.coeffs;
         current_params += best.parameters;
         added.push(best.name);
     }
 
     let predicted_base = simulate(
-        &setup.coeffs,
+        &refit_base_coeffs,
         Effects::NONE,
         tracker,
         samples,
         &setup.branches,
     );
-    let predicted_after = simulate(&setup.coeffs, current, tracker, samples, &setup.branches);
+    let predicted_after = simulate(&model_coeffs, current, tracker, samples, &setup.branches);
     let candidates = rounds
         .first()
         .map(|r| {
@@ -915,7 +979,9 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         rounds,
         base: base_errors,
         after: current_errors,
-        base_params,
+        rms_paper_fit: paper_errors.rms_heldout,
+        base_params: refit_base_params,
+        final_params: model_params,
         effects: current,
         heldout_samples,
         train_samples: samples.len() - heldout_samples,
@@ -929,34 +995,171 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     })
 }
 
+/// Base parameters the joint refit moves: the critical points' pressures
+/// (the curve's shape through the stroke), the stroke end, the ellipse
+/// height and the load growth of the cubic.
+pub const BASE_REFIT_FIELDS: [&str; 5] = [
+    "tangency.pressure_mpa",
+    "inflection.pressure_mpa",
+    "max_contraction",
+    "ellipse_height_mpa",
+    "c_growth_per_step",
+];
+
+fn base_field(p: &mut Params, k: usize) -> Option<&mut f32> {
+    match k {
+        0 => Some(&mut p.points.tangency.pressure_mpa),
+        1 => Some(&mut p.points.inflection.pressure_mpa),
+        2 => Some(&mut p.points.max_contraction),
+        3 => Some(&mut p.ellipse_height_mpa),
+        4 => Some(&mut p.c_growth_per_step),
+        _ => None,
+    }
+}
+
+/// Refit [`BASE_REFIT_FIELDS`] of `params` with `effects` on, on the
+/// training samples' simulated residuals: `iterations` damped Gauss–Newton
+/// steps (forward-difference Jacobian, a step is kept only when the
+/// training cost falls, the damping grows when it does not). Returns the
+/// input when nothing improves or a step leaves the valid parameters.
+fn refit_base(
+    setup: &Setup<'_>,
+    params: Params,
+    coeffs: Coeffs,
+    effects: Effects,
+    iterations: usize,
+) -> (Params, Coeffs) {
+    let train = |c: &Coeffs| -> Option<DVector<f64>> {
+        let res = setup.residuals_with(c, effects);
+        let v = DVector::from_iterator(
+            setup.train_idx.len(),
+            setup.train_idx.iter().map(|&i| res[i]),
+        );
+        v.iter().all(|r| r.is_finite()).then_some(v)
+    };
+    let with = |p: &Params, delta: &[f64]| -> Option<(Params, Coeffs)> {
+        let mut q = *p;
+        for (k, d) in delta.iter().enumerate() {
+            let f = base_field(&mut q, k)?;
+            *f += *d as f32;
+        }
+        Coeffs::new(q).ok().map(|c| (q, c))
+    };
+    let (mut p, mut c) = (params, coeffs);
+    let Some(mut r) = train(&c) else {
+        return (p, c);
+    };
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-3;
+    let m = BASE_REFIT_FIELDS.len();
+    for _ in 0..iterations {
+        let h: Vec<f64> = (0..m)
+            .map(|k| {
+                let mut q = p;
+                let v = base_field(&mut q, k).map_or(0.0, |f| f64::from(*f));
+                1e-3 * v.abs().max(1e-2)
+            })
+            .collect();
+        let cols: Vec<Option<DVector<f64>>> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..m)
+                .map(|k| {
+                    let mut d = vec![0.0; m];
+                    d[k] = h[k];
+                    let (with, train, p) = (&with, &train, &p);
+                    s.spawn(move || with(p, &d).and_then(|(_, c)| train(&c)))
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|hd| hd.join().ok().flatten())
+                .collect()
+        });
+        let mut jac = DMatrix::zeros(r.len(), m);
+        for (k, col) in cols.iter().enumerate() {
+            let Some(col) = col else { return (p, c) };
+            jac.set_column(k, &((col - &r) / h[k]));
+        }
+        let jtj = jac.transpose() * &jac;
+        let jtr = jac.transpose() * &r;
+        let mut improved = false;
+        for _ in 0..4 {
+            let mut a = jtj.clone();
+            for k in 0..m {
+                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
+            }
+            let Some(step) = a.lu().solve(&(-&jtr)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            if let Some((q, qc)) = with(&p, step.as_slice()) {
+                if let Some(qr) = train(&qc) {
+                    let qcost = qr.norm_squared();
+                    if qcost < cost {
+                        (p, c, r, cost) = (q, qc, qr, qcost);
+                        lambda = (lambda * 0.3).max(1e-6);
+                        improved = true;
+                        break;
+                    }
+                }
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    (p, c)
+}
+
 fn evaluate_candidate(
     setup: &Setup<'_>,
     kind: EffectKind,
+    model: (Params, Coeffs),
     current: Effects,
     current_errors: &ModelErrors,
     current_params: usize,
     cfg: &DiagnoseConfig,
 ) -> CandidateResult {
-    let mut best: Option<(f64, Vec<f64>)> = None;
-    for start in kind.starts() {
-        let problem = CandidateProblem {
-            setup,
-            kind,
-            base: current,
-            theta: DVector::from_vec(start),
-        };
-        let (problem, report) = LevenbergMarquardt::new()
-            .with_patience(cfg.patience)
-            .minimize(problem);
-        let cost = report.objective_function;
-        if cost.is_finite() && best.as_ref().is_none_or(|(c, _)| cost < *c) {
-            best = Some((cost, problem.theta.as_slice().to_vec()));
+    let fit_effect = |coeffs: Coeffs, starts: Vec<Vec<f64>>| -> Vec<f64> {
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for start in starts {
+            let problem = CandidateProblem {
+                setup,
+                coeffs,
+                kind,
+                base: current,
+                theta: DVector::from_vec(start),
+            };
+            let (problem, report) = LevenbergMarquardt::new()
+                .with_patience(cfg.patience)
+                .minimize(problem);
+            let cost = report.objective_function;
+            if cost.is_finite() && best.as_ref().is_none_or(|(c, _)| cost < *c) {
+                best = Some((cost, problem.theta.as_slice().to_vec()));
+            }
         }
-    }
-    let theta = best.map(|(_, t)| t).unwrap_or_default();
+        best.map(|(_, t)| t).unwrap_or_default()
+    };
+    // The effect's parameters on the current base, then the base refitted
+    // with the effect on (an effect the base fit could not see biases it:
+    // creep lags every ramp the static curve was fitted to), then the
+    // effect's parameters again on that base.
+    let theta = fit_effect(model.1, kind.starts());
+    let (base_params, coeffs) = refit_base(
+        setup,
+        model.0,
+        model.1,
+        kind.apply(current, &theta),
+        cfg.refit_iterations,
+    );
+    let theta = if cfg.refit_iterations > 0 {
+        fit_effect(coeffs, vec![theta])
+    } else {
+        theta
+    };
     let effects = kind.apply(current, &theta);
     let n_params = current_params + kind.parameter_count();
-    let (errors, _) = setup.errors(effects, n_params);
+    let (errors, _) = setup.errors(&coeffs, effects, n_params);
     let improvement = 1.0 - errors.rms_heldout / current_errors.rms_heldout;
     let bic_drop = current_errors.bic - errors.bic;
     let regime_rms = |e: &ModelErrors| -> f64 {
@@ -991,6 +1194,8 @@ fn evaluate_candidate(
         signature,
         effects,
         errors,
+        base_params,
+        coeffs,
     }
 }
 

@@ -3,16 +3,21 @@
 //! the rig's effect (or `none`), and should at least halve the held-out RMS
 //! where an effect is present.
 //!
-//! Status (measured, release build, seed 7, short protocol): names are right
-//! for none / memory / rate / width; creep is not named (its hold signature
-//! is cut by about 8 %, below the 15 % rule); the held-out RMS cuts are
-//! 48 % (memory), 42 % (rate), 33 % (width) — short of one half. Those two
-//! requirements are kept as ignored tests so they stay visible and runnable
+//! Status (measured, release build, seed 7, short protocol): every plant
+//! is named right; held-out RMS cuts 73 % (memory), 50 % (creep), 45 %
+//! (rate), 37 % (width); in a debug build creep's cut is 46 %. The creep,
+//! rate and width halving requirements are kept
+//! as ignored tests so they stay visible and runnable
 //! (`cargo test -p pam-lab --release --test diagnose_hidden -- --ignored`).
+//!
+//! Each plant is diagnosed once (a per-plant `OnceLock`), shared by its
+//! naming and halving tests, to keep the suite's debug run short.
 
 mod support;
 
 use pam_lab::diagnose::{diagnose, DiagnoseConfig, DiagnoseReport};
+use std::sync::OnceLock;
+
 use support::hidden_plants::{csv, Plant};
 
 fn run(plant: Plant, seed: u64) -> DiagnoseReport {
@@ -25,8 +30,21 @@ fn run(plant: Plant, seed: u64) -> DiagnoseReport {
     report
 }
 
-fn names(plant: Plant) -> DiagnoseReport {
-    let r = run(plant, 7);
+/// The diagnosis of `plant` (seed 7), computed once per test binary.
+fn report(plant: Plant) -> &'static DiagnoseReport {
+    static CACHE: [OnceLock<DiagnoseReport>; 5] = [const { OnceLock::new() }; 5];
+    let slot = match plant {
+        Plant::None => 0,
+        Plant::NonLocalMemory => 1,
+        Plant::Rate => 2,
+        Plant::Creep => 3,
+        Plant::Width => 4,
+    };
+    CACHE[slot].get_or_init(|| run(plant, 7))
+}
+
+fn names(plant: Plant) -> &'static DiagnoseReport {
+    let r = report(plant);
     assert_eq!(r.named, plant.expected_name(), "{plant:?}");
     if plant == Plant::None {
         assert!(r.effects_added.is_empty(), "{:?}", r.effects_added);
@@ -68,25 +86,29 @@ fn load_dependent_width_is_named() {
 }
 
 #[test]
-#[ignore = "fails: creep's hold signature is cut ~8 %, below the 15 % evidence rule"]
 fn creep_is_named() {
     names(Plant::Creep);
 }
 
 #[test]
-#[ignore = "fails: held-out RMS cut 48 %, requirement is 50 %"]
+#[ignore = "marginal: held-out RMS cut 50.4 % in release, 46 % in debug (the base fit differs), requirement is 50 %"]
+fn creep_halves_the_error() {
+    halves(Plant::Creep);
+}
+
+#[test]
 fn non_local_memory_halves_the_error() {
     halves(Plant::NonLocalMemory);
 }
 
 #[test]
-#[ignore = "fails: held-out RMS cut 42 %, requirement is 50 %"]
+#[ignore = "fails: held-out RMS cut 45 %, requirement is 50 %"]
 fn rate_dependence_halves_the_error() {
     halves(Plant::Rate);
 }
 
 #[test]
-#[ignore = "fails: held-out RMS cut 33 %, requirement is 50 %"]
+#[ignore = "fails: held-out RMS cut 37 %, requirement is 50 %"]
 fn load_dependent_width_halves_the_error() {
     halves(Plant::Width);
 }

@@ -12,11 +12,27 @@
 //! 3. when the pressure passes `t` the minor loop has closed: `r` and `t` are
 //!    wiped out and the curve from before the minor loop continues.
 //!
-//! The curve between `r` and `t` is the branch of the current direction plus
-//! an offset in contraction that moves from `d_r` (the offset of `r` from the
-//! branch) to `d_t` (that of `t`):
-//! `x(p) = x_branch(p) + d_t + (d_r − d_t)·s^shape`, `s = (p − p_t)/(p_r − p_t)`.
-//! `shape → ∞` is the paper's jump to the branch; `shape = 1` blends linearly.
+//! The curve between `r` and `t` is the branch `B(p)` of the current
+//! direction plus an offset in contraction that moves from `d_r = x_r − B(p_r)`
+//! (the offset of `r` from the branch) to `d_t = x_t − B(p_t)` (that of `t`),
+//! as the branch itself moves from `B(p_r)` to `B(p_t)`:
+//!
+//! `x = B(p) + d_t + (d_r − d_t)·w(s)`, `s = (B(p) − B(p_t))/(B(p_r) − B(p_t))`,
+//! `w(s) = s / (s + k·(1 − s))`, `k` = [`NonLocalMemory::shape`].
+//!
+//! `w` is a rational blend (one division, no `powf`) with `w(0) = 0`,
+//! `w(1) = 1`: `k = 1` moves the offset in proportion to the branch's own
+//! progress (the minor loop is the branch affinely rescaled through its two
+//! turning points); `k → ∞` leaves the reversal at once, which is the
+//! paper's jump to the branch; `k → 0` holds the reversal's offset long.
+//! Measuring progress along the branch (not in pressure) makes a reversal
+//! near a stroke end, where the two branches meet, join the new branch
+//! quickly, as a full-cycle reversal does.
+//!
+//! Cost: the branch inverse `B(p)` (the fast table inverse when the offset
+//! is not scaled) once per sample; `B(p_r)`, `B(p_t)` are cached per minor
+//! loop (recomputed after a push, a wipe-out, a change of branch, load
+//! model or offset scale).
 //!
 //! When the stack is full the oldest point is dropped (its loop then closes
 //! on the major loop instead): memory of at most `N` nested reversals.
@@ -33,9 +49,10 @@ use super::branch_contraction;
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct NonLocalMemory {
-    /// Exponent of the minor-loop blend, in `[0.05, 50]`: small values hold
-    /// the reversal's offset long (a flat start), large values approach the
-    /// paper's jump to the branch.
+    /// `k` of the minor-loop blend `w(s) = s/(s + k(1 − s))`, in
+    /// `[0.05, 50]`: small values hold the reversal's offset long (a flat
+    /// start), 1 rescales the branch, large values approach the paper's jump
+    /// to the branch.
     pub shape: f32,
 }
 
@@ -50,6 +67,16 @@ impl NonLocalMemory {
         }
         Ok(())
     }
+
+    /// The blend `w(s) = s/(s + k(1 − s))` for `s` clamped to `[0, 1]` and
+    /// `k` to `[0.05, 50]` (NaN `s` → 0): in `[0, 1]`, monotone, never NaN.
+    #[inline]
+    pub fn blend(&self, s: f32) -> f32 {
+        let s = clamp(s, 0.0, 1.0);
+        let k = clamp(self.shape, 0.05, 50.0);
+        // The denominator is k + s(1 − k) >= min(k, 1) >= 0.05.
+        s / (k + s * (1.0 - k))
+    }
 }
 
 /// A reversal point.
@@ -61,11 +88,30 @@ pub struct Reversal {
     pub contraction: f32,
 }
 
+/// The minor loop being followed, in branch coordinates, with what it was
+/// computed for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Segment {
+    branch: Branch,
+    scale_bits: u32,
+    load_bits: u32,
+    max_contraction_bits: u32,
+    /// `B(p_t)`.
+    b_t: f32,
+    /// `1/(B(p_r) − B(p_t))`, 0 for a degenerate loop.
+    inv_span: f32,
+    /// `d_t`.
+    d_t: f32,
+    /// `d_r − d_t`.
+    d_rt: f32,
+}
+
 /// Fixed-capacity stack of reversal points with wiping-out.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReversalStack<const N: usize> {
     points: [Reversal; N],
     len: usize,
+    segment: Option<Segment>,
 }
 
 impl<const N: usize> Default for ReversalStack<N> {
@@ -73,6 +119,7 @@ impl<const N: usize> Default for ReversalStack<N> {
         ReversalStack {
             points: [Reversal::default(); N],
             len: 0,
+            segment: None,
         }
     }
 }
@@ -86,6 +133,7 @@ impl<const N: usize> ReversalStack<N> {
     /// Forget everything (back on the major loop).
     pub fn clear(&mut self) {
         self.len = 0;
+        self.segment = None;
     }
 
     /// Push a reversal; non-finite points are refused; when full the oldest
@@ -102,6 +150,7 @@ impl<const N: usize> ReversalStack<N> {
             *slot = r;
             self.len += 1;
         }
+        self.segment = None;
     }
 
     fn top2(&self) -> (Option<Reversal>, Option<Reversal>) {
@@ -126,7 +175,56 @@ impl<const N: usize> ReversalStack<N> {
                 return;
             }
             self.len -= 2;
+            self.segment = None;
         }
+    }
+
+    /// The minor loop from the top point, for `branch`, `model` and
+    /// `offset_scale` (cached; two branch inverses on a miss).
+    fn segment(&mut self, model: &LoadModel, branch: Branch, offset_scale: f32) -> Option<Segment> {
+        let (origin, target) = self.top2();
+        let origin = origin?;
+        let scale_bits = offset_scale.to_bits();
+        let load_bits = model.load_n().to_bits();
+        let max_contraction_bits = model.max_contraction().to_bits();
+        if let Some(s) = self.segment {
+            if s.branch == branch
+                && s.scale_bits == scale_bits
+                && s.load_bits == load_bits
+                && s.max_contraction_bits == max_contraction_bits
+            {
+                return Some(s);
+            }
+        }
+        let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
+        let (b_t, d_t) = match target {
+            Some(t) => {
+                let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
+                (b_t, t.contraction - b_t)
+            }
+            // The first reversal's curve closes on the end of the major loop.
+            None => {
+                let end = match branch {
+                    Branch::Contraction => model.max_pressure_mpa(),
+                    Branch::Expansion => 0.0,
+                };
+                (branch_contraction(model, end, branch, offset_scale), 0.0)
+            }
+        };
+        let span = b_r - b_t;
+        let inv_span = if span.abs() > 1e-6 { 1.0 / span } else { 0.0 };
+        let s = Segment {
+            branch,
+            scale_bits,
+            load_bits,
+            max_contraction_bits,
+            b_t,
+            inv_span,
+            d_t,
+            d_rt: (origin.contraction - b_r) - d_t,
+        };
+        self.segment = Some(s);
+        Some(s)
     }
 
     /// Contraction at `pressure_mpa` on `branch` with the memory, after
@@ -143,30 +241,11 @@ impl<const N: usize> ReversalStack<N> {
         let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
         self.wipe_out(p, branch);
         let x_branch = branch_contraction(model, p, branch, offset_scale);
-        let (Some(origin), target) = self.top2() else {
+        let Some(seg) = self.segment(model, branch, offset_scale) else {
             return x_branch;
         };
-        let d_r = origin.contraction
-            - branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
-        let (p_t, d_t) = match target {
-            Some(t) => (
-                t.pressure_mpa,
-                t.contraction - branch_contraction(model, t.pressure_mpa, branch, offset_scale),
-            ),
-            // The first reversal's curve closes on the end of the major loop.
-            None => match branch {
-                Branch::Contraction => (model.max_pressure_mpa(), 0.0),
-                Branch::Expansion => (0.0, 0.0),
-            },
-        };
-        let span = origin.pressure_mpa - p_t;
-        let s = if span.abs() > 1e-6 {
-            clamp((p - p_t) / span, 0.0, 1.0)
-        } else {
-            0.0
-        };
-        let w = libm::powf(s, params.shape);
-        let x = x_branch + d_t + (d_r - d_t) * w;
+        let w = params.blend((x_branch - seg.b_t) * seg.inv_span);
+        let x = x_branch + seg.d_t + seg.d_rt * w;
         clamp(x, model.root_contraction(), model.max_contraction())
     }
 }
