@@ -15,6 +15,9 @@ use crate::params::Params;
 /// paper's shape conditions (one real root, monotone), ends included.
 pub const SHAPE_CHECK_LOADS: u32 = 65;
 
+/// Smallest non-zero ellipse height `be` [`Coeffs::new`] accepts, MPa (1 Pa).
+pub const MIN_ELLIPSE_HEIGHT_MPA: f32 = 1e-6;
+
 /// Validated parameters with the minimum-load cubic precomputed.
 ///
 /// Build once with [`Coeffs::new`] (host or boot); then [`Coeffs::load_model`]
@@ -86,12 +89,15 @@ impl Coeffs {
                 "must lie in (R1, Rx1)",
             ));
         }
-        if !(params.ellipse_height_mpa >= 0.0
-            && params.ellipse_height_mpa < 0.5 * p.max_pressure_mpa)
-        {
+        // A height below 1 Pa (1e-6 MPa) has no physical meaning, and its
+        // square, stored per load, would be an f32 subnormal that keeps only a
+        // few significant bits (fuzz `core_eval` found the offset 1 % above
+        // `be` at be = 1.3e-22 MPa): such heights must be exactly 0.
+        let be = params.ellipse_height_mpa;
+        if !((be == 0.0 || be >= MIN_ELLIPSE_HEIGHT_MPA) && be < 0.5 * p.max_pressure_mpa) {
             return Err(Error::OutOfRange(
                 "ellipse_height_mpa",
-                "must be in [0, Pmax/2)",
+                "must be 0 or in [1e-6, Pmax/2) MPa",
             ));
         }
 

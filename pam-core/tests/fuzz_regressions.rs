@@ -65,3 +65,31 @@ fn default_stroke_is_non_empty_at_both_ends() {
         assert!(m.max_contraction() < 1.0);
     }
 }
+
+/// core_eval, 2026-11-21: with `be` = 1.28e-22 MPa the stored `(be/ae)²` was
+/// an f32 subnormal and `offset_mpa` came out 1 % above `be` (an absolute
+/// error of 1e-24 MPa, but outside the documented range). Fixed in
+/// `Coeffs::new`: a non-zero `be` below 1e-6 MPa (1 Pa) is refused.
+#[test]
+fn a_subnormal_squared_ellipse_height_is_refused() {
+    let mut p = Params::DEFAULT;
+    p.ellipse_height_mpa = 1.28e-22;
+    assert!(matches!(
+        Coeffs::new(p),
+        Err(Error::OutOfRange("ellipse_height_mpa", _))
+    ));
+    p.ellipse_height_mpa = 0.0;
+    let c = Coeffs::new(p).unwrap();
+    let m = c.load_model_clamped(200.0);
+    assert_eq!(
+        m.offset_mpa(0.5 * (m.root_contraction() + m.max_contraction())),
+        0.0
+    );
+    p.ellipse_height_mpa = pam_core::load_family::MIN_ELLIPSE_HEIGHT_MPA;
+    let m = Coeffs::new(p).unwrap().load_model_clamped(200.0);
+    let peak = m.offset_mpa(0.5 * (m.root_contraction() + m.max_contraction()));
+    assert!(
+        peak <= p.ellipse_height_mpa * (1.0 + 4.0 * f32::EPSILON),
+        "{peak}"
+    );
+}
