@@ -1117,7 +1117,7 @@ mod tests {
         for _ in 0..100_000 {
             let s = c.update(&good(0.5, 0.0, 200.0), 0.2);
             assert_eq!(s.fault, None);
-            assert!(s.pressure_cmd_mpa <= 0.5);
+            assert!(s.pressure_cmd_mpa <= Params::DEFAULT.points.max_pressure_mpa);
         }
         let held = c.integral_mpa();
         assert!(
