@@ -300,12 +300,20 @@ pub fn hindsight_branches(
             let held = last_in_band.is_some_and(|j| {
                 j >= sweep_start + HOLD_SAMPLES && (j - HOLD_SAMPLES..=j).all(|k| near(k, band))
             });
+            // On a ramp the running median flattens the peak into a short
+            // plateau around the true turn: take the middle of the samples
+            // within a third of the deadband (the last of them turns a few
+            // samples late, a one-sample spike of the branch gap).
             let turn = match last_in_band {
                 Some(j) if held => j,
-                _ => (sweep_start..i)
-                    .rev()
-                    .find(|&j| near(j, band / 3.0))
-                    .unwrap_or(extreme_at),
+                _ => {
+                    let last = (sweep_start..i).rev().find(|&j| near(j, band / 3.0));
+                    let first = (sweep_start..i).find(|&j| near(j, band / 3.0));
+                    match (first, last) {
+                        (Some(a), Some(b)) => (a + b) / 2,
+                        _ => extreme_at,
+                    }
+                }
             };
             for b in out.iter_mut().take(i).skip(turn + 1) {
                 *b = t.branch();
