@@ -22,29 +22,14 @@ pub const BLOB_MAGIC: [u8; 4] = *b"PAMC";
 /// Format version this crate writes and reads.
 pub const BLOB_VERSION: u16 = 1;
 /// Number of `f32` fields in the payload.
-pub const PAYLOAD_FIELDS: usize = 14;
+pub const PAYLOAD_FIELDS: usize = Params::FIELD_COUNT;
 /// Payload length, bytes.
 pub const PAYLOAD_LEN: usize = 4 * PAYLOAD_FIELDS;
 /// Total blob length, bytes.
 pub const BLOB_LEN: usize = 8 + PAYLOAD_LEN + 4;
 
 fn fields(p: &Params) -> [f32; PAYLOAD_FIELDS] {
-    [
-        p.min_load_n,
-        p.max_load_n,
-        p.load_step_n,
-        p.points.root_contraction,
-        p.points.max_contraction,
-        p.points.max_pressure_mpa,
-        p.points.tangency.contraction,
-        p.points.tangency.pressure_mpa,
-        p.points.inflection.contraction,
-        p.points.inflection.pressure_mpa,
-        p.root_regression_per_step,
-        p.max_regression_per_step,
-        p.c_growth_per_step,
-        p.ellipse_height_mpa,
-    ]
+    p.named_fields().map(|(_, v)| v)
 }
 
 fn from_fields(f: &[f32; PAYLOAD_FIELDS]) -> Params {

@@ -58,6 +58,33 @@ pub struct Params {
 }
 
 impl Params {
+    /// Number of `f32` fields: what the model file, the blob and validation walk.
+    pub const FIELD_COUNT: usize = 14;
+
+    /// Every field as `(name, value)`, in declaration order (the order of the
+    /// coefficient blob, [`crate::blob`]). Names are the model file's keys.
+    pub fn named_fields(&self) -> [(&'static str, f32); Params::FIELD_COUNT] {
+        [
+            ("min_load_n", self.min_load_n),
+            ("max_load_n", self.max_load_n),
+            ("load_step_n", self.load_step_n),
+            ("root_contraction", self.points.root_contraction),
+            ("max_contraction", self.points.max_contraction),
+            ("max_pressure_mpa", self.points.max_pressure_mpa),
+            ("tangency.contraction", self.points.tangency.contraction),
+            ("tangency.pressure_mpa", self.points.tangency.pressure_mpa),
+            ("inflection.contraction", self.points.inflection.contraction),
+            (
+                "inflection.pressure_mpa",
+                self.points.inflection.pressure_mpa,
+            ),
+            ("root_regression_per_step", self.root_regression_per_step),
+            ("max_regression_per_step", self.max_regression_per_step),
+            ("c_growth_per_step", self.c_growth_per_step),
+            ("ellipse_height_mpa", self.ellipse_height_mpa),
+        ]
+    }
+
     /// The built-in reference muscle: host-sim's simulated 100–600 N
     /// McKibben muscle (Tondu–Lopez force, bladder threshold, Maxwell-slip
     /// friction: `host_sim::plant::MuscleParams::DEFAULT`) driven to 0.5 MPa.

@@ -34,23 +34,8 @@ fn characterisation_csv(seed: u64) -> pam_lab::data::Record {
 }
 
 /// Every parameter as `(name, value)`.
-fn fields(p: &Params) -> [(&'static str, f32); 14] {
-    [
-        ("min_load_n", p.min_load_n),
-        ("max_load_n", p.max_load_n),
-        ("load_step_n", p.load_step_n),
-        ("root_contraction", p.points.root_contraction),
-        ("max_contraction", p.points.max_contraction),
-        ("max_pressure_mpa", p.points.max_pressure_mpa),
-        ("tangency.contraction", p.points.tangency.contraction),
-        ("tangency.pressure_mpa", p.points.tangency.pressure_mpa),
-        ("inflection.contraction", p.points.inflection.contraction),
-        ("inflection.pressure_mpa", p.points.inflection.pressure_mpa),
-        ("root_regression_per_step", p.root_regression_per_step),
-        ("max_regression_per_step", p.max_regression_per_step),
-        ("c_growth_per_step", p.c_growth_per_step),
-        ("ellipse_height_mpa", p.ellipse_height_mpa),
-    ]
+fn fields(p: &Params) -> [(&'static str, f32); Params::FIELD_COUNT] {
+    p.named_fields()
 }
 
 #[test]
