@@ -4,8 +4,10 @@
 //! plots.
 //!
 //! ```text
-//! cargo run --release -p host-sim [-- --out DIR] [--seed N]
+//! cargo run --release -p host-sim [-- --out DIR] [--seed N] [--kp MPA] [--ki MPA_PER_S]
 //! ```
+//! `--kp` and `--ki` override the controller's PI gains in every arm (for a
+//! gain sweep; the defaults are `ControllerConfig::DEFAULT`'s).
 //! Default output folder: `target/host-sim-report/`.
 
 use host_sim::bench::{run, BenchConfig, Mode, Run};
@@ -25,20 +27,35 @@ fn scenarios(seed: u64) -> Vec<Scenario> {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut out = PathBuf::from("target/host-sim-report");
     let mut seed = 1u64;
+    let mut kp_mpa: Option<f32> = None;
+    let mut ki_mpa_per_s: Option<f32> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--out" => out = PathBuf::from(args.next().ok_or("--out needs a folder")?),
             "--seed" => seed = args.next().ok_or("--seed needs a number")?.parse()?,
+            "--kp" => kp_mpa = Some(args.next().ok_or("--kp needs a gain in MPa")?.parse()?),
+            "--ki" => {
+                ki_mpa_per_s = Some(args.next().ok_or("--ki needs a gain in MPa/s")?.parse()?)
+            }
             "-h" | "--help" => {
-                println!("usage: host-sim [--out DIR] [--seed N]");
+                println!("usage: host-sim [--out DIR] [--seed N] [--kp MPA] [--ki MPA_PER_S]");
                 return Ok(());
             }
             other => return Err(format!("unknown argument {other:?} (try --help)").into()),
         }
     }
     std::fs::create_dir_all(&out)?;
-    let cfg = BenchConfig::default_with_seed(seed);
+    let mut cfg = BenchConfig::default_with_seed(seed);
+    if let Some(kp) = kp_mpa {
+        cfg.controller.kp_mpa = kp;
+    }
+    if let Some(ki) = ki_mpa_per_s {
+        cfg.controller.ki_mpa_per_s = ki;
+    }
+    cfg.controller
+        .validate()
+        .map_err(|e| format!("controller gains refused: {e:?}"))?;
 
     println!("host-sim: firmware controller on the simulated McKibben rig (seed {seed})");
     println!("[1/5] characterisation run (isotonic, 100-600 N) ...");
