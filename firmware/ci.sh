@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
 # Firmware CI, called by .ci/run: installs what it needs, lints the chip
-# builds, builds the board image and checks it against the size budget and
-# for panic paths from the control step (firmware/panic-check.sh), then
-# runs the QEMU image (run-pass: exit 0 only when the tracking error stays
-# within the stated bound and the injected fault is caught) and the QEMU
-# image with a corrupt coefficient blob (must be refused at boot).
+# builds, builds the board controller (`cargo fw-build`, stm32f4xx-hal) and
+# the board self-test image (`cargo fw-selftest-build`) and checks each
+# against the size budget and for panic paths from its control step
+# (firmware/panic-check.sh), then runs the QEMU self-test image (run-pass:
+# exit 0 only when the tracking error stays within the stated bound and the
+# injected fault is caught) and the QEMU image with a corrupt coefficient
+# blob (must be refused at boot). The board controller is built and checked,
+# never run: QEMU's netduinoplus2 does not emulate the ADCs and timers as the
+# silicon behaves, and CI has no board.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -15,30 +19,39 @@ command -v qemu-system-arm >/dev/null || (apt-get update && apt-get install -y q
 qemu-system-arm --version | head -n 1
 
 target_dir=${CARGO_TARGET_DIR:-$PWD/target}
-elf=$target_dir/thumbv7em-none-eabihf/release/firmware
+release=$target_dir/thumbv7em-none-eabihf/release
 llvm_size=$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-size
-
-echo "== firmware: clippy for thumbv7em-none-eabihf (board and QEMU images)"
-cargo fw-clippy-chip
-cargo fw-clippy
-
-echo "== firmware: board image and size budget"
-cargo fw-build
-"$llvm_size" -A "$elf"
-read -r flash ram < <("$llvm_size" -A "$elf" | awk '
-  /^\.(vector_table|text|rodata|data|pam_coeffs|gnu\.sgstubs) / { flash += $2 }
-  /^\.(data|bss|uninit) / { ram += $2 }
-  END { print flash + 0, ram + 0 }')
 flash_budget=$(awk '$1 == "flash_bytes" { print $2 }' firmware/size-budget.txt)
 ram_budget=$(awk '$1 == "ram_bytes" { print $2 }' firmware/size-budget.txt)
-echo "flash $flash / $flash_budget bytes, static RAM $ram / $ram_budget bytes"
-if [ "$flash" -gt "$flash_budget" ] || [ "$ram" -gt "$ram_budget" ]; then
-  echo "firmware: over the size budget (firmware/size-budget.txt)" >&2
-  exit 1
-fi
 
-echo "== firmware: no panic reachable from the control step (board image)"
-bash firmware/panic-check.sh
+# size_check ELF: flash and static RAM against firmware/size-budget.txt.
+size_check() {
+  "$llvm_size" -A "$1"
+  read -r flash ram < <("$llvm_size" -A "$1" | awk '
+    /^\.(vector_table|text|rodata|data|pam_coeffs|gnu\.sgstubs) / { flash += $2 }
+    /^\.(data|bss|uninit) / { ram += $2 }
+    END { print flash + 0, ram + 0 }')
+  echo "$(basename "$1"): flash $flash / $flash_budget bytes, static RAM $ram / $ram_budget bytes"
+  if [ "$flash" -gt "$flash_budget" ] || [ "$ram" -gt "$ram_budget" ]; then
+    echo "firmware: $(basename "$1") over the size budget (firmware/size-budget.txt)" >&2
+    exit 1
+  fi
+}
+
+echo "== firmware: clippy for thumbv7em-none-eabihf (board controller, board self-test, QEMU self-test)"
+cargo fw-clippy-chip
+cargo fw-clippy-selftest
+cargo fw-clippy
+
+echo "== firmware: board controller (stm32f4xx-hal), size budget, panic paths"
+cargo fw-build
+size_check "$release/firmware"
+bash firmware/panic-check.sh "$release/firmware" pam_board_control_step
+
+echo "== firmware: board self-test image, size budget, panic paths"
+cargo fw-selftest-build
+size_check "$release/selftest"
+bash firmware/panic-check.sh "$release/selftest" pam_control_step
 
 echo "== firmware: QEMU run-pass (netduinoplus2)"
 timeout 300 cargo fw-qemu

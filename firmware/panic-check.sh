@@ -1,29 +1,36 @@
 #!/usr/bin/env bash
-# Panic-freedom of the control step in the board image (`cargo fw-build`:
-# release, LTO, one codegen unit, panic-probe).
+# Panic-freedom of the control step in an LTO image (release, one codegen
+# unit): the board controller (`cargo fw-build`, root
+# `firmware::board::pam_board_control_step`) or the self-test image
+# (`cargo fw-selftest-build` / `cargo fw-qemu-build`, root
+# `firmware::scenario::pam_control_step`).
 #
-# `firmware::scenario::pam_control_step` (exported unmangled, not inlined) is
-# the image's whole control period: sensor reads, the controller's update and
-# the valve write. This disassembles the ELF, builds the call graph from
+# The root (exported unmangled, not inlined) is the image's whole control
+# period: sensor reads, the controller's update and the valve write. This
+# disassembles the ELF, builds the call graph from
 # every direct branch whose target lies in another function (`bl`, `b.w`,
 # conditional `b<cc>.w` tail calls), and takes the transitive closure from
 # `pam_control_step`. It fails if that set contains a panic entry point
 # (`core::panicking::*`, `panic_bounds_check`, `*unwrap_failed`,
 # `*expect_failed`, `slice_*_fail`, `rust_begin_unwind`, `panic_probe`), or an
 # indirect call (`blx rN`, `bx rN` other than `bx lr`) that the graph cannot
-# follow, or a `udf` trap (an abort). To show the check can fail it also requires the image to contain
-# `core::panicking::panic_fmt` and at least one function that reaches it.
+# follow, or a `udf` trap (an abort). To show the check can fail it also requires the image
+# to contain `core::panicking::panic_fmt` and at least one function that
+# reaches it.
 #
-# usage: firmware/panic-check.sh [ELF]   (default: the board image)
+# usage: firmware/panic-check.sh [ELF [ROOT]]
+#   (default: the board controller, root pam_board_control_step)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 target_dir=${CARGO_TARGET_DIR:-$PWD/target}
 elf=${1:-$target_dir/thumbv7em-none-eabihf/release/firmware}
+root=${2:-pam_board_control_step}
+echo "panic-check: $elf, root $root"
 bin=$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin
-"$bin/llvm-objdump" -d --no-show-raw-insn -C "$elf" | python3 -c '
-import re, sys
+"$bin/llvm-objdump" -d --no-show-raw-insn -C "$elf" | PANIC_CHECK_ROOT="$root" python3 -c '
+import os, re, sys
 
-ROOT = "pam_control_step"
+ROOT = os.environ["PANIC_CHECK_ROOT"]
 PANIC = re.compile(r"core::panicking::|panic_bounds_check|unwrap_failed|expect_failed|"
                    r"slice_\w*_fail|str_index_overflow_fail|rust_begin_unwind|panic_probe|"
                    r"\bpanic_fmt\b|panic_const|panic_nounwind")

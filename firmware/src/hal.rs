@@ -148,6 +148,54 @@ impl PressureCalibration {
     }
 }
 
+/// Affine calibration of an analog sensor other than pressure (a
+/// potentiometer for contraction, an amplified strain gauge for load):
+/// `value = (counts − zero_counts) · units_per_count`, valid only for codes
+/// in `[min_valid, max_valid]`.
+///
+/// As for [`PressureCalibration`], the window rejects codes that a healthy
+/// sensor cannot produce (an open wiper pulled to a rail, a saturated
+/// amplifier) with [`SensorErrorKind::InvalidCode`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinearCalibration {
+    /// Code at a value of 0.
+    pub zero_counts: f32,
+    /// Value per count (the slope; must be finite and non-zero; negative for
+    /// a sensor mounted the other way round).
+    pub units_per_count: f32,
+    /// Lowest valid code.
+    pub min_valid: Counts,
+    /// Highest valid code.
+    pub max_valid: Counts,
+}
+
+impl LinearCalibration {
+    /// Check that the calibration can convert: finite, non-zero slope,
+    /// finite zero, non-empty window.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        if !(self.units_per_count.is_finite() && self.units_per_count != 0.0) {
+            return Err("units_per_count must be finite and non-zero");
+        }
+        if !self.zero_counts.is_finite() {
+            return Err("zero_counts must be finite");
+        }
+        if self.min_valid > self.max_valid {
+            return Err("min_valid must not exceed max_valid");
+        }
+        Ok(())
+    }
+
+    /// Counts to the sensor's unit; a code outside the valid window is
+    /// [`SensorErrorKind::InvalidCode`].
+    pub fn to_value(&self, counts: Counts) -> Result<f32, SensorErrorKind> {
+        if counts < self.min_valid || counts > self.max_valid {
+            return Err(SensorErrorKind::InvalidCode);
+        }
+        Ok((f32::from(counts.0) - self.zero_counts) * self.units_per_count)
+    }
+}
+
 /// A pressure transducer on the muscle's chamber.
 pub trait PressureSensor: ErrorType {
     /// One conversion, raw counts.
@@ -504,6 +552,44 @@ mod tests {
         let mut bad = cal;
         bad.mpa_per_count = 0.0;
         assert!(bad.validate().is_err());
+    }
+
+    #[test]
+    fn linear_calibration_maps_and_rejects() {
+        let cal = LinearCalibration {
+            zero_counts: 100.0,
+            units_per_count: -0.5,
+            min_valid: Counts(10),
+            max_valid: Counts(4000),
+        };
+        cal.validate().unwrap();
+        assert_eq!(cal.to_value(Counts(100)), Ok(0.0));
+        assert_eq!(cal.to_value(Counts(300)), Ok(-100.0));
+        assert_eq!(cal.to_value(Counts(9)), Err(SensorErrorKind::InvalidCode));
+        assert_eq!(
+            cal.to_value(Counts(4001)),
+            Err(SensorErrorKind::InvalidCode)
+        );
+        for bad in [
+            LinearCalibration {
+                units_per_count: 0.0,
+                ..cal
+            },
+            LinearCalibration {
+                units_per_count: f32::NAN,
+                ..cal
+            },
+            LinearCalibration {
+                zero_counts: f32::INFINITY,
+                ..cal
+            },
+            LinearCalibration {
+                min_valid: Counts(4001),
+                ..cal
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
     }
 
     struct Fixed(Result<Counts, SensorErrorKind>);

@@ -42,5 +42,28 @@ pub mod controller;
 pub mod hal;
 pub mod plant;
 pub mod scenario;
+pub mod wiring;
+
+#[cfg(all(target_os = "none", feature = "chip"))]
+pub mod board;
+
+/// The coefficient blob the images carry, placed by `memory.x` at the start
+/// of the COEFFS flash sector (0x080E0000) so it can be rewritten on its
+/// own (`probe-rs download --base-address 0x080E0000`).
+// `link_section` is flagged by the `unsafe_code` lint; placing read-only
+// bytes in a dedicated flash region is the whole effect here.
+#[cfg(all(target_os = "none", feature = "rt"))]
+#[allow(unsafe_code)]
+#[used]
+#[link_section = ".pam_coeffs"]
+pub static COEFFS_BLOB: [u8; pam_core::blob::BLOB_LEN] =
+    *include_bytes!(concat!(env!("OUT_DIR"), "/coeffs.bin"));
+
+/// The blob in flash, read at run time: `black_box` keeps the compiler from
+/// folding the build-time bytes, so a rewritten sector takes effect.
+#[cfg(all(target_os = "none", feature = "rt"))]
+pub fn coeffs_blob() -> &'static [u8] {
+    core::hint::black_box(&COEFFS_BLOB)
+}
 
 pub use controller::{Controller, ControllerConfig, Fault, Io, SafetyConfig, Step};

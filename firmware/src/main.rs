@@ -1,168 +1,197 @@
-//! The STM32F405 image (board: feature `chip`; QEMU `netduinoplus2`:
-//! feature `qemu`).
+//! The board controller: what a user flashes on the STM32F405RG valve
+//! controller (`cargo fw-build`, `cargo fw-run`; feature `chip`).
 //!
-//! Boot reads the coefficient blob from its flash sector and refuses it
-//! unless magic, version, length, CRC-32 and the parameter validation all
-//! pass; a refused blob leaves the valves in the safe state and the image
-//! stops. With a good blob the image runs [`firmware::scenario`]: the
-//! controller drives the simulated muscle through the triangle trajectory,
-//! faults and recoveries are logged through defmt (and, under QEMU, over
-//! semihosting), and the result decides the exit code under QEMU (0 only if
-//! the run passes).
+//! Boot sets up the board ([`firmware::board::init`]: clocks, valves in the
+//! safe state, three ADCs, TIM2), then reads the coefficient blob from its
+//! flash sector and refuses it unless magic, version, length, CRC-32 and the
+//! parameter validation all pass; a refused blob leaves the valves in the
+//! safe state, is reported through defmt, and no control runs. With a good
+//! blob the TIM2 update interrupt runs one control step per millisecond:
+//! three ADC conversions, the controller, two PWM duties. On any fault the
+//! controller puts the valves in its safe state in that same step.
+//!
+//! The set-point is the exercise of [`firmware::scenario::triangle`]
+//! (contraction 0.06 → 0.16 → 0.06, 4 s period, repeated); replace
+//! [`setpoint`] with the orthosis's own set-point source.
+//!
+//! Every 10 s the interrupt logs the largest step time in core cycles and
+//! the number of overruns (a tick that arrived before its step finished).
 #![no_std]
 #![no_main]
 
-#[cfg(all(feature = "chip", feature = "qemu"))]
-compile_error!("enable one of the features `chip` (board) and `qemu`, not both");
-
+use core::cell::RefCell;
+use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::entry;
+use critical_section::Mutex;
 use defmt_rtt as _;
-use firmware::controller::{ControllerConfig, Feedforward, Step};
-use firmware::hal::{SafeState, Valve, ValvePair, ValvePairConfig};
-use firmware::plant::{SimBus, SimPwm};
-use firmware::scenario::{self, Report};
-use firmware::Controller;
-use pam_core::blob::BLOB_LEN;
-#[cfg(feature = "chip")]
+use firmware::board::{self, pam_board_control_step, BoardIo};
+use firmware::controller::ControllerConfig;
+use firmware::hal::{LoadCell, Valve};
+use firmware::{scenario, wiring, Controller};
 use panic_probe as _;
+use stm32f4xx_hal::pac::{self, interrupt, Interrupt, TIM2};
+use stm32f4xx_hal::timer::{CounterHz, Flag};
+use stm32f4xx_hal::{ClearFlags, ReadFlags};
 
-/// The coefficient blob, placed by `memory.x` at the start of the COEFFS
-/// flash sector (0x080E0000) so it can be rewritten on its own.
-// `link_section` is flagged by the `unsafe_code` lint; placing read-only
-// bytes in a dedicated flash region is the whole effect here.
-#[allow(unsafe_code)]
-#[used]
-#[link_section = ".pam_coeffs"]
-static COEFFS_BLOB: [u8; BLOB_LEN] = *include_bytes!(concat!(env!("OUT_DIR"), "/coeffs.bin"));
+/// Ticks in one period of the exercise trajectory.
+const TRAJECTORY_TICKS: u32 = (scenario::PERIOD_S * wiring::CONTROL_HZ as f32) as u32;
+/// Ticks between two timing reports (10 s).
+const REPORT_TICKS: u32 = 10 * wiring::CONTROL_HZ;
 
-/// Log through defmt and, in the QEMU image, over semihosting as text.
-macro_rules! log {
-    ($level:ident, $($arg:tt)*) => {{
-        defmt::$level!($($arg)*);
-        #[cfg(feature = "qemu")]
-        cortex_m_semihosting::hprintln!($($arg)*);
-    }};
+/// Everything the control interrupt owns.
+struct ControlLoop {
+    ctl: Controller,
+    io: BoardIo,
+    tick: CounterHz<TIM2>,
+    /// Position in the trajectory, ticks (`< TRAJECTORY_TICKS`).
+    phase: u32,
+    /// Steps since boot (wraps after 49 days; used only in log lines).
+    steps: u32,
+    /// Largest step time in the current report window, core cycles.
+    max_cycles: u32,
+    /// Ticks that arrived before their step finished, since boot.
+    overruns: u32,
 }
 
-/// Stop: under QEMU exit with the given status; on a board hit a breakpoint
-/// (probe-rs ends `run` there) and then sleep.
-fn finish(passed: bool) -> ! {
-    #[cfg(feature = "qemu")]
-    cortex_m_semihosting::debug::exit(if passed {
-        cortex_m_semihosting::debug::EXIT_SUCCESS
-    } else {
-        cortex_m_semihosting::debug::EXIT_FAILURE
-    });
-    #[cfg(not(feature = "qemu"))]
-    {
-        let _ = passed;
-        cortex_m::asm::bkpt();
-    }
+/// The control loop, put here by `main` before the interrupt is unmasked and
+/// used only by the interrupt from then on. One static rather than a
+/// hand-over plus a handler-local copy: `None` of this type is not all-zero
+/// bits, so each such static costs its full size (1040 B) in `.data`, flash
+/// and RAM both.
+static LOOP: Mutex<RefCell<Option<ControlLoop>>> = Mutex::new(RefCell::new(None));
+
+/// The desired contraction at `phase` ticks into the trajectory.
+fn setpoint(phase: u32) -> f32 {
+    scenario::triangle(phase as f32 * ControllerConfig::DEFAULT.dt_s)
+}
+
+/// No control: valves stay where `init` left them (safe), the core sleeps.
+fn halt() -> ! {
     loop {
         cortex_m::asm::wfi();
     }
 }
 
-fn on_event(k: u32, step: &Step) {
-    if let Some(f) = step.new_fault {
-        log!(warn, "step {}: fault: {}; valves safe", k, f);
-    }
-    if step.recovered {
-        log!(info, "step {}: recovered after a run of good readings", k);
-    }
-}
-
-fn report(name: &str, r: &Report) {
-    log!(
-        info,
-        "{}: max |error| {} (bound {}), rms {}, over {} steps",
-        name,
-        r.max_error,
-        scenario::MAX_ERROR_BOUND,
-        r.rms_error,
-        r.steps
-    );
-}
-
 #[entry]
 fn main() -> ! {
-    // The image's valves are the simulated pair; put them in the safe state
-    // before anything else, as a board's would be.
-    let bus = SimBus::new();
-    let mut valve = match ValvePair::new(
-        SimPwm(&bus.inlet_duty),
-        SimPwm(&bus.exhaust_duty),
-        ValvePairConfig::DEFAULT,
-    ) {
-        Ok(v) => v,
+    let config = ControllerConfig::DEFAULT;
+    let safe = config.safety.safe_state;
+    let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
+        halt()
+    };
+    let mut board = match board::init(dp, &mut cp.DCB, &mut cp.DWT, safe) {
+        Ok(b) => b,
         Err(why) => {
-            log!(error, "valve configuration refused: {}", why);
-            finish(false)
+            defmt::error!("board: init refused: {}; valves safe, no control", why);
+            halt()
         }
     };
-    let safe = ControllerConfig::DEFAULT.safety.safe_state;
-    let _ = valve.set_safe(safe);
-
-    // Read the blob from flash at run time (black_box keeps the compiler
-    // from folding the build-time bytes, so a rewritten sector takes effect).
-    let blob: &[u8] = core::hint::black_box(&COEFFS_BLOB);
-    if let Err(e) = Controller::from_blob(blob, ControllerConfig::DEFAULT, scenario::LOAD_N) {
-        log!(error, "boot: coefficient blob refused: {}", e);
-        let _ = valve.set_safe(SafeState::Exhaust);
-        finish(false)
-    }
-    log!(info, "boot: coefficient blob accepted ({} bytes)", BLOB_LEN);
-
-    let run = |ff: Feedforward, events: bool| {
-        scenario::run(blob, ff, |k, s| {
-            if events {
-                on_event(k, s)
-            }
-        })
-    };
-    let result = match run(Feedforward::Hysteresis, true) {
-        Ok(r) => r,
-        Err(e) => {
-            log!(error, "scenario refused: {}", e);
-            finish(false)
-        }
-    };
-    report("hysteresis feedforward", &result);
-    // The same run without hysteresis compensation, for comparison only.
-    if let Ok(r) = run(Feedforward::Constraint, false) {
-        report("constraint-model feedforward", &r);
-    }
-    if let Ok(r) = run(Feedforward::Off, false) {
-        report("no feedforward (PI only)", &r);
-    }
-    let passed = result.passed();
-    log!(
-        info,
-        "fault caught in the same step: {}, recovery after {} good samples",
-        result.fault_caught,
-        result.recovery_steps.unwrap_or(0)
+    defmt::info!(
+        "board: {} Hz core, valve PWM {} Hz with {} duty steps, control {} Hz",
+        wiring::SYSCLK_HZ,
+        wiring::VALVE_PWM_HZ,
+        board.max_duty,
+        wiring::CONTROL_HZ
     );
-    if passed {
-        log!(info, "PASS");
-    } else {
-        log!(error, "FAIL");
+
+    let coeffs = match pam_core::blob::decode(firmware::coeffs_blob()) {
+        Ok(c) => c,
+        Err(e) => {
+            defmt::error!(
+                "boot: coefficient blob refused: {}; valves safe, no control",
+                e
+            );
+            let _ = board.io.valve.set_safe(safe);
+            halt()
+        }
+    };
+    // The tracker starts at the measured load (clamped to the calibrated
+    // range); a failed read starts it at the lightest load, and the first
+    // step reports the fault.
+    let load_n = match board.io.load.read_load_n() {
+        Ok(l) if l.is_finite() => l,
+        _ => coeffs.params().min_load_n,
+    };
+    let ctl = match Controller::new(coeffs, config, load_n) {
+        Ok(c) => c,
+        Err(e) => {
+            defmt::error!("boot: controller refused: {}; valves safe, no control", e);
+            let _ = board.io.valve.set_safe(safe);
+            halt()
+        }
+    };
+    defmt::info!(
+        "boot: coefficient blob accepted ({} bytes), load {} N",
+        pam_core::blob::BLOB_LEN,
+        load_n
+    );
+
+    critical_section::with(|cs| {
+        LOOP.borrow(cs).replace(Some(ControlLoop {
+            ctl,
+            io: board.io,
+            tick: board.tick,
+            phase: 0,
+            steps: 0,
+            max_cycles: 0,
+            overruns: 0,
+        }))
+    });
+    // SAFETY: unmasking cannot break a critical section here: `main` holds
+    // none, and the handler's state was handed over just above.
+    #[allow(unsafe_code)]
+    unsafe {
+        NVIC::unmask(Interrupt::TIM2)
+    };
+    halt()
+}
+
+#[interrupt]
+fn TIM2() {
+    // The step runs inside the critical section: this is the image's only
+    // interrupt, so masking the others delays nothing.
+    critical_section::with(|cs| {
+        let mut state = LOOP.borrow(cs).try_borrow_mut();
+        match state.as_deref_mut() {
+            Ok(Some(s)) => control(s),
+            // Nothing to run (cannot happen: main fills LOOP before
+            // unmasking); mask the line so a pending flag does not spin.
+            _ => NVIC::mask(Interrupt::TIM2),
+        }
+    });
+}
+
+/// One tick: the control step, its timing, and the log lines.
+fn control(s: &mut ControlLoop) {
+    s.tick.clear_flags(Flag::Update);
+    let t0 = DWT::cycle_count();
+    let step = pam_board_control_step(&mut s.ctl, &mut s.io, setpoint(s.phase));
+    let cycles = DWT::cycle_count().wrapping_sub(t0);
+    if s.tick.flags().contains(Flag::Update) {
+        s.overruns = s.overruns.saturating_add(1);
     }
-    finish(passed)
-}
+    s.max_cycles = s.max_cycles.max(cycles);
+    s.phase = if s.phase + 1 >= TRAJECTORY_TICKS {
+        0
+    } else {
+        s.phase + 1
+    };
+    s.steps = s.steps.wrapping_add(1);
 
-/// Under QEMU a panic must end the emulator with a failure, not hang it.
-#[cfg(feature = "qemu")]
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    cortex_m_semihosting::hprintln!("panic: {}", info);
-    finish(false)
-}
-
-/// Under QEMU a hard fault must end the emulator with a failure, not hang it.
-#[cfg(feature = "qemu")]
-#[allow(unsafe_code)] // cortex-m-rt requires the HardFault handler to be `unsafe fn`.
-#[cortex_m_rt::exception]
-unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
-    cortex_m_semihosting::hprintln!("hard fault at pc {:#010x}", frame.pc());
-    finish(false)
+    if let Some(f) = step.new_fault {
+        defmt::warn!("step {}: fault: {}; valves safe", s.steps, f);
+    }
+    if step.recovered {
+        defmt::info!("step {}: recovered after a run of good readings", s.steps);
+    }
+    if s.steps % REPORT_TICKS == 0 {
+        defmt::info!(
+            "step {}: max step {} cycles over the last {} steps, {} overruns since boot",
+            s.steps,
+            s.max_cycles,
+            REPORT_TICKS,
+            s.overruns
+        );
+        s.max_cycles = 0;
+    }
 }

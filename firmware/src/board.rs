@@ -1,0 +1,275 @@
+//! Board support for the STM32F405RG valve controller, on `stm32f4xx-hal`
+//! (chip builds with the `chip` feature only; host builds and `cargo test`
+//! do not compile it). The numbers and the pin table are in
+//! [`crate::wiring`].
+//!
+//! * Clocks: 8 MHz HSE → PLL → 168 MHz core, 42 MHz APB1, 84 MHz APB2.
+//! * Valves: TIM1 CH1 (PA8, inlet) and CH2 (PA9, exhaust) as a
+//!   [`ValvePair`] of `stm32f4xx-hal` PWM channels (embedded-hal 1.0
+//!   [`SetDutyCycle`](crate::hal::SetDutyCycle)).
+//! * Sensors: one ADC each ([`AdcInput`]), raw codes through the
+//!   calibrations of [`crate::wiring`]. A conversion is started and polled
+//!   with a deadline on the DWT cycle counter, so a converter that never
+//!   finishes is a [`SensorErrorKind::Timeout`], an overrun a
+//!   [`SensorErrorKind::Bus`], a code outside the window
+//!   [`SensorErrorKind::InvalidCode`]. (The HAL's own `Adc::convert` waits
+//!   without a bound and can panic, so the control step does not use it.)
+//! * Tick: TIM2 update interrupt at 1 kHz ([`init`] returns the counter; the
+//!   image unmasks the interrupt).
+//!
+//! Initialisation ([`init`]) may panic inside the HAL (its clock
+//! configuration asserts on impossible clock trees); that is before any
+//! control and before the valves can open. The control step
+//! ([`pam_board_control_step`]) is checked panic-free by
+//! `firmware/panic-check.sh`.
+
+use crate::controller::{Controller, Io, Step};
+use crate::hal::{
+    ContractionSensor, Counts, ErrorType, LinearCalibration, LoadCell, PressureCalibration,
+    PressureSensor, SafeState, SensorErrorKind, Valve, ValvePair,
+};
+use crate::wiring;
+use core::ops::Deref;
+use cortex_m::peripheral::DWT;
+use stm32f4xx_hal::gpio::{Analog, PC0, PC1, PC2};
+use stm32f4xx_hal::hal_02::adc::Channel;
+use stm32f4xx_hal::pac::{self, adc1::RegisterBlock as AdcRegisters, ADC1, ADC2, ADC3, TIM1, TIM2};
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::{Config, Enable, Rcc, Reset};
+use stm32f4xx_hal::timer::{CounterHz, Event, PwmChannel};
+
+/// Upper bound on status polls of one conversion, in case the cycle counter
+/// is stopped (it is started by [`init`]); far beyond the deadline at any
+/// poll cost of one cycle or more.
+const ADC_MAX_POLLS: u32 = wiring::ADC_TIMEOUT_CYCLES;
+
+/// One ADC converting one channel on demand (single conversion, software
+/// start), with the pin held in analog mode.
+pub struct AdcInput<A, P> {
+    adc: A,
+    _pin: P,
+}
+
+impl<A, P> AdcInput<A, P>
+where
+    A: Deref<Target = AdcRegisters> + Enable + Reset,
+    P: Channel<A, ID = u8>,
+{
+    /// Clock and configure `adc` for single 12-bit conversions of `pin`'s
+    /// channel with [`wiring::ADC_SAMPLE_CYCLES`] sampling, then power it up.
+    /// The ADC prescaler (common to the three ADCs) is set by [`init`].
+    pub fn new(adc: A, pin: P, rcc: &mut Rcc) -> Self {
+        A::enable(rcc);
+        let ch = P::channel();
+        // 12 bits, no scan, no interrupts; one conversion per SWSTART.
+        adc.cr1().reset();
+        adc.cr2().reset();
+        adc.sqr1().reset(); // sequence length 1
+                            // SAFETY: SQ1 is a 5-bit channel number; `ch` comes from the HAL's
+                            // pin-to-channel table for this ADC (0..=18), a valid channel.
+        #[allow(unsafe_code)]
+        adc.sqr3().write(|w| unsafe { w.sq1().bits(ch) });
+        match ch {
+            0..=9 => adc.smpr2().modify(|_, w| w.smp(ch).cycles480()),
+            _ => adc.smpr1().modify(|_, w| w.smp(ch - 10).cycles480()),
+        };
+        adc.cr2().modify(|_, w| w.adon().set_bit());
+        AdcInput { adc, _pin: pin }
+    }
+
+    /// One conversion, raw 12-bit counts.
+    ///
+    /// Errors: [`SensorErrorKind::Bus`] on an overrun flag,
+    /// [`SensorErrorKind::Timeout`] when no end of conversion arrives within
+    /// [`wiring::ADC_TIMEOUT_CYCLES`].
+    pub fn read(&mut self) -> Result<Counts, SensorErrorKind> {
+        let adc = &*self.adc;
+        // Clear stale status (the flags are cleared by writing 0).
+        adc.sr()
+            .modify(|_, w| w.eoc().clear_bit().ovr().clear_bit().strt().clear_bit());
+        adc.cr2().modify(|_, w| w.swstart().set_bit());
+        let start = DWT::cycle_count();
+        let mut polls = 0u32;
+        loop {
+            let sr = adc.sr().read();
+            if sr.ovr().bit_is_set() {
+                return Err(SensorErrorKind::Bus);
+            }
+            if sr.eoc().bit_is_set() {
+                // Reading DR also clears EOC.
+                return Ok(Counts(adc.dr().read().data().bits()));
+            }
+            polls += 1;
+            if DWT::cycle_count().wrapping_sub(start) > wiring::ADC_TIMEOUT_CYCLES
+                || polls > ADC_MAX_POLLS
+            {
+                return Err(SensorErrorKind::Timeout);
+            }
+        }
+    }
+}
+
+/// The pressure transducer on ADC1 / PC0.
+pub struct BoardPressure {
+    input: AdcInput<ADC1, PC0<Analog>>,
+    calibration: PressureCalibration,
+}
+
+impl ErrorType for BoardPressure {
+    type Error = SensorErrorKind;
+}
+
+impl PressureSensor for BoardPressure {
+    fn read_counts(&mut self) -> Result<Counts, SensorErrorKind> {
+        self.input.read()
+    }
+    fn calibration(&self) -> &PressureCalibration {
+        &self.calibration
+    }
+}
+
+/// The contraction potentiometer on ADC2 / PC1.
+pub struct BoardContraction {
+    input: AdcInput<ADC2, PC1<Analog>>,
+    calibration: LinearCalibration,
+}
+
+impl ErrorType for BoardContraction {
+    type Error = SensorErrorKind;
+}
+
+impl ContractionSensor for BoardContraction {
+    fn read_contraction(&mut self) -> Result<f32, SensorErrorKind> {
+        self.calibration.to_value(self.input.read()?)
+    }
+}
+
+/// The load cell amplifier on ADC3 / PC2.
+pub struct BoardLoad {
+    input: AdcInput<ADC3, PC2<Analog>>,
+    calibration: LinearCalibration,
+}
+
+impl ErrorType for BoardLoad {
+    type Error = SensorErrorKind;
+}
+
+impl LoadCell for BoardLoad {
+    fn read_load_n(&mut self) -> Result<f32, SensorErrorKind> {
+        self.calibration.to_value(self.input.read()?)
+    }
+}
+
+/// Inlet (TIM1 CH1, PA8) and exhaust (TIM1 CH2, PA9) valve channels.
+pub type BoardValve = ValvePair<PwmChannel<TIM1, 0>, PwmChannel<TIM1, 1>>;
+
+/// The board's hardware as the controller sees it.
+pub type BoardIo = Io<BoardPressure, BoardContraction, BoardLoad, BoardValve>;
+
+/// What [`init`] hands back.
+pub struct Board {
+    /// Sensors and valves.
+    pub io: BoardIo,
+    /// TIM2 counting at [`wiring::CONTROL_HZ`], its update interrupt enabled
+    /// in the timer (the NVIC line is still masked).
+    pub tick: CounterHz<TIM2>,
+    /// The PWM channels' full duty (timer counts per period).
+    pub max_duty: u16,
+}
+
+/// Clocks, valves (left in `safe`), sensors and the control tick.
+///
+/// The valve pins are driven, with both channels at the safe state's duty,
+/// before the sensors are set up. Errors: a configuration the wiring
+/// constants make invalid (calibrations, too few duty steps).
+pub fn init(
+    dp: pac::Peripherals,
+    dcb: &mut cortex_m::peripheral::DCB,
+    dwt: &mut DWT,
+    safe: SafeState,
+) -> Result<Board, &'static str> {
+    let mut rcc = dp.RCC.freeze(
+        Config::hse(wiring::HSE_HZ.Hz())
+            .sysclk(wiring::SYSCLK_HZ.Hz())
+            .pclk1(wiring::PCLK1_HZ.Hz())
+            .pclk2(wiring::PCLK2_HZ.Hz()),
+    );
+    // The ADC deadline runs on the cycle counter.
+    dcb.enable_trace();
+    dwt.enable_cycle_counter();
+
+    let gpioa = dp.GPIOA.split(&mut rcc);
+    let gpioc = dp.GPIOC.split(&mut rcc);
+
+    // Valves first: a PWM channel starts at duty 0 (closed), then the safe
+    // state is written before the outputs are enabled.
+    let (_pwm, (ch1, ch2, ..)) = dp.TIM1.pwm_hz(wiring::VALVE_PWM_HZ.Hz(), &mut rcc);
+    let mut inlet = ch1.with(gpioa.pa8);
+    let mut exhaust = ch2.with(gpioa.pa9);
+    let max_duty = inlet.get_max_duty();
+    let _ = ValvePair::new(&mut inlet, &mut exhaust, wiring::VALVE_PAIR)?.set_safe(safe);
+    inlet.enable();
+    exhaust.enable();
+    let mut valve = ValvePair::new(inlet, exhaust, wiring::VALVE_PAIR)?;
+    // A wrapped or tiny ARR would make every duty 0 or coarse.
+    if max_duty < wiring::MIN_DUTY_STEPS {
+        let _ = valve.set_safe(safe);
+        return Err("valve PWM has too few duty steps (timer clock or VALVE_PWM_HZ)");
+    }
+    let _ = valve.set_safe(safe);
+
+    wiring::PRESSURE.validate()?;
+    wiring::CONTRACTION.validate()?;
+    wiring::LOAD.validate()?;
+    // ADC clock: PCLK2 / 4 = 21 MHz, common to the three ADCs.
+    const _: () = assert!(wiring::ADC_PRESCALER == 4);
+    dp.ADC_COMMON.ccr().modify(|_, w| w.adcpre().div4());
+    let pressure = BoardPressure {
+        input: AdcInput::new(dp.ADC1, gpioc.pc0.into_analog(), &mut rcc),
+        calibration: wiring::PRESSURE,
+    };
+    let contraction = BoardContraction {
+        input: AdcInput::new(dp.ADC2, gpioc.pc1.into_analog(), &mut rcc),
+        calibration: wiring::CONTRACTION,
+    };
+    let load = BoardLoad {
+        input: AdcInput::new(dp.ADC3, gpioc.pc2.into_analog(), &mut rcc),
+        calibration: wiring::LOAD,
+    };
+
+    let mut tick = dp.TIM2.counter_hz(&mut rcc);
+    tick.start(wiring::CONTROL_HZ.Hz())
+        .map_err(|_| "TIM2 refused the control rate")?;
+    tick.listen(Event::Update);
+
+    Ok(Board {
+        io: Io {
+            pressure,
+            contraction,
+            load,
+            valve,
+        },
+        tick,
+        max_duty,
+    })
+}
+
+/// One control period of the board image: [`Controller::step`] on
+/// [`BoardIo`] (three ADC conversions, the controller's update, two PWM
+/// duty writes).
+///
+/// Not inlined and exported unmangled as `pam_board_control_step`, so that
+/// `firmware/panic-check.sh` finds it in the LTO image and checks that no
+/// panic is reachable from it.
+// `no_mangle` is flagged by the `unsafe_code` lint (symbol clashes); the
+// name is unique to this crate.
+#[allow(unsafe_code)]
+#[no_mangle]
+#[inline(never)]
+pub fn pam_board_control_step(
+    ctl: &mut Controller,
+    io: &mut BoardIo,
+    desired_contraction: f32,
+) -> Step {
+    ctl.step(io, desired_contraction)
+}
