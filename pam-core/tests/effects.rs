@@ -1,11 +1,12 @@
 //! Property tests of the effect extensions over the whole f32 domain: the
 //! simulator never panics, never returns NaN, and stays within the stroke.
 
+use pam_core::effects::MAX_OFFSET_SCALE;
 use pam_core::effects::{
     branch_contraction, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
-    Reversal, ReversalStack, Simulator,
+    RateState, Reversal, ReversalStack, Simulator,
 };
-use pam_core::{Branch, Coeffs, Params, TrackerConfig};
+use pam_core::{Branch, Coeffs, Params, Tracker, TrackerConfig};
 use proptest::prelude::*;
 
 fn coeffs() -> Coeffs {
@@ -42,8 +43,182 @@ fn all_effects() -> Effects {
     }
 }
 
+/// The simulator's memory path written with the public API only:
+/// [`ReversalStack::contraction`] (which checks its whole cache key and
+/// clamps the pressure itself) on every sample. The simulator's per-sample
+/// path caches more and tests less; it must give the same bits.
+struct Reference<const N: usize> {
+    coeffs: Coeffs,
+    tracker: Tracker,
+    stack: ReversalStack<N>,
+    memory: NonLocalMemory,
+    width: Option<LoadDependentWidth>,
+    rate: Option<RateDependence>,
+    rate_state: RateState,
+    last_t_s: Option<f32>,
+    extreme: Option<Reversal>,
+    branch: Branch,
+    last_p: f32,
+}
+
+impl<const N: usize> Reference<N> {
+    fn new(
+        memory: NonLocalMemory,
+        width: Option<LoadDependentWidth>,
+        rate: Option<RateDependence>,
+        load_n: f32,
+    ) -> Self {
+        let coeffs = coeffs();
+        let tracker = Tracker::new(
+            &coeffs,
+            TrackerConfig::DEFAULT_PRESSURE,
+            load_n,
+            Branch::Contraction,
+        )
+        .unwrap();
+        Reference {
+            coeffs,
+            tracker,
+            stack: ReversalStack::default(),
+            memory,
+            width,
+            rate,
+            rate_state: RateState::default(),
+            last_t_s: None,
+            extreme: None,
+            branch: Branch::Contraction,
+            last_p: 0.0,
+        }
+    }
+
+    /// `t_s` finite.
+    fn step(&mut self, t_s: f32, p: f32, load_n: f32, branch: Option<Branch>) -> f32 {
+        let dt_s = self.last_t_s.map_or(f32::NAN, |last| t_s - last);
+        self.last_t_s = Some(t_s);
+        let dt_s = if dt_s > 0.0 && dt_s <= 1.0 {
+            dt_s
+        } else {
+            f32::NAN
+        };
+        let p = if p.is_finite() { p } else { self.last_p };
+        self.last_p = p;
+        let update = self.tracker.update(&self.coeffs, p, load_n);
+        let branch = branch.unwrap_or(self.tracker.branch());
+        let switched = branch != self.branch;
+        self.branch = branch;
+        if update.load_switch.is_some() {
+            self.stack.clear();
+            self.extreme = None;
+        }
+        let mut scale = 1.0;
+        if let Some(w) = &self.width {
+            scale *= w.scale(self.coeffs.params(), self.tracker.load_n());
+        }
+        if let Some(r) = &self.rate {
+            self.rate_state.update(p, dt_s);
+            scale *= r.scale(&self.rate_state);
+        }
+        let scale = scale.clamp(0.0, MAX_OFFSET_SCALE);
+        let model = self.tracker.model();
+        if switched {
+            if let Some(r) = self.extreme {
+                self.stack.push(r);
+            }
+            self.extreme = None;
+        }
+        let x = self
+            .stack
+            .contraction(&self.memory, model, p, branch, scale);
+        let beyond = match (self.extreme, branch) {
+            (None, _) => true,
+            (Some(e), Branch::Contraction) => p >= e.pressure_mpa,
+            (Some(e), Branch::Expansion) => p <= e.pressure_mpa,
+        };
+        if beyond || switched {
+            self.extreme = Some(Reversal {
+                pressure_mpa: p,
+                contraction: x,
+            });
+        }
+        x.clamp(model.root_contraction(), model.max_contraction())
+    }
+}
+
+/// A pressure walk with reversals of every size, excursions below 0 and
+/// above `Pmax`, a few non-finite samples and load steps.
+fn walk() -> impl Strategy<Value = std::vec::Vec<(f32, f32, u8)>> {
+    proptest::collection::vec(
+        (
+            prop_oneof![
+                4 => -0.03f32..0.55,
+                1 => 0.45f32..0.6,
+                1 => -0.05f32..0.03,
+                1 => Just(f32::NAN),
+            ],
+            prop_oneof![8 => Just(200.0f32), 1 => 50.0f32..650.0],
+            any::<u8>(),
+        ),
+        1..12,
+    )
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(500))]
+
+    #[test]
+    fn simulator_memory_is_the_reversal_stack_bit_for_bit(
+        legs in walk(),
+        shape in 0.05f32..50.0,
+        width in any::<bool>(),
+        rate in any::<bool>(),
+        on_branch in any::<bool>(),
+    ) {
+        let memory = NonLocalMemory { shape };
+        let width = width.then_some(LoadDependentWidth {
+            scale_at_min_load: 1.2,
+            scale_per_step: -0.1,
+        });
+        // The rate changes the offset scale on every sample (with a cached
+        // minor loop for the previous scale), except at a constant pressure.
+        let rate = rate.then_some(RateDependence {
+            scale_at_rest: 0.9,
+            scale_per_mpa_per_s: 2.0,
+        });
+        let effects = Effects { memory: Some(memory), width, rate, ..Effects::NONE };
+        let mut sim = Simulator::<3>::new(coeffs(), effects, TrackerConfig::DEFAULT_PRESSURE, 200.0).unwrap();
+        let mut reference = Reference::<3>::new(memory, width, rate, 200.0);
+        let mut p = 0.0f32;
+        let mut t = 0.0f32;
+        let mut k = 0u32;
+        for (target, load_n, noise) in legs {
+            // Ramp to the target at 0.002 MPa per sample with ±0.004 MPa of
+            // noise (reversals inside a ramp too); a NaN target is one NaN sample.
+            let steps = if target.is_finite() { ((target - p).abs() / 0.002) as u32 + 1 } else { 1 };
+            for j in 0..steps.min(300) {
+                let pm = if target.is_finite() {
+                    p += (target - p).clamp(-0.002, 0.002);
+                    let n = (u32::from(noise).wrapping_mul(2_654_435_761).wrapping_add(j * 40_503)) >> 24;
+                    p + 0.004 * (n as f32 / 128.0 - 1.0)
+                } else {
+                    f32::NAN
+                };
+                t += 0.02;
+                k += 1;
+                let branch = if on_branch {
+                    Some(if (k / 7 + u32::from(noise)) % 3 == 0 { Branch::Expansion } else { Branch::Contraction })
+                } else {
+                    None
+                };
+                let x = match branch {
+                    Some(b) => sim.step_on_branch(t, pm, load_n, b),
+                    None => sim.step(t, pm, load_n),
+                };
+                let want = reference.step(t, pm, load_n, branch);
+                prop_assert_eq!(x.to_bits(), want.to_bits(), "sample {}: {} vs {}", k, x, want);
+                prop_assert_eq!(sim.reversals(), reference.stack.points());
+            }
+        }
+    }
 
     #[test]
     fn simulator_output_is_finite_and_within_the_stroke(

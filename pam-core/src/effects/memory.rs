@@ -32,7 +32,11 @@
 //! Cost: the branch inverse `B(p)` (the fast table inverse when the offset
 //! is not scaled) once per sample; `B(p_r)`, `B(p_t)` are cached per minor
 //! loop (recomputed after a push, a wipe-out, a change of branch, load
-//! model or offset scale).
+//! model or offset scale). The [`Simulator`](super::Simulator)'s per-sample
+//! path on a cached minor loop is one comparison for the wiping-out test, one
+//! for the offset scale, the blend (one division) and the clamp to the
+//! stroke: about 40 instructions on a Cortex-M4F besides the branch inverse
+//! (bench-m4).
 //!
 //! When the stack is full the oldest point is dropped (its loop then closes
 //! on the major loop instead): memory of at most `N` nested reversals.
@@ -72,10 +76,37 @@ impl NonLocalMemory {
     /// `k` to `[0.05, 50]` (NaN `s` → 0): in `[0, 1]`, monotone, never NaN.
     #[inline]
     pub fn blend(&self, s: f32) -> f32 {
-        let s = clamp(s, 0.0, 1.0);
+        self.blend_coeffs().apply(s)
+    }
+
+    /// `k` clamped to `[0.05, 50]` and `1 − k`, the per-sample constants of
+    /// [`Self::blend`] (the [`Simulator`](super::Simulator) computes them once).
+    #[inline]
+    pub(crate) fn blend_coeffs(&self) -> Blend {
         let k = clamp(self.shape, 0.05, 50.0);
+        Blend {
+            k,
+            one_minus_k: 1.0 - k,
+        }
+    }
+}
+
+/// [`NonLocalMemory::blend`] with its constants computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Blend {
+    /// `k` in `[0.05, 50]`.
+    k: f32,
+    /// `1 − k`.
+    one_minus_k: f32,
+}
+
+impl Blend {
+    /// `w(s)`, the same operations as [`NonLocalMemory::blend`].
+    #[inline]
+    fn apply(self, s: f32) -> f32 {
+        let s = clamp(s, 0.0, 1.0);
         // The denominator is k + s(1 − k) >= min(k, 1) >= 0.05.
-        s / (k + s * (1.0 - k))
+        s / (self.k + s * self.one_minus_k)
     }
 }
 
@@ -96,6 +127,13 @@ struct Segment {
     scale_bits: u32,
     load_bits: u32,
     max_contraction_bits: u32,
+    /// The wiping-out test of [`ReversalStack::wipe_out`] on an unclamped
+    /// finite pressure `p`, as one comparison: the top pair is wiped out when
+    /// `wipe_sign·p > wipe_mpa` (`wipe_sign` is +1 rising, −1 falling; see
+    /// [`wipe_threshold`]).
+    wipe_sign: f32,
+    /// `wipe_sign` times the threshold of [`wipe_threshold`].
+    wipe_mpa: f32,
     /// `B(p_t)`.
     b_t: f32,
     /// `1/(B(p_r) − B(p_t))`, 0 for a degenerate loop.
@@ -150,6 +188,14 @@ impl<const N: usize> ReversalStack<N> {
             *slot = r;
             self.len += 1;
         }
+        self.segment = None;
+    }
+
+    /// Forget the cached minor loop (the [`Simulator`](super::Simulator)
+    /// calls this where the branch changes; its model and offset scale change
+    /// only with a load switch, which clears the stack, or are compared).
+    #[inline]
+    pub(crate) fn invalidate(&mut self) {
         self.segment = None;
     }
 
@@ -213,11 +259,17 @@ impl<const N: usize> ReversalStack<N> {
         };
         let span = b_r - b_t;
         let inv_span = if span.abs() > 1e-6 { 1.0 / span } else { 0.0 };
+        let wipe_sign = match branch {
+            Branch::Contraction => 1.0,
+            Branch::Expansion => -1.0,
+        };
         let s = Segment {
             branch,
             scale_bits,
             load_bits,
             max_contraction_bits,
+            wipe_sign,
+            wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
             b_t,
             inv_span,
             d_t,
@@ -244,9 +296,95 @@ impl<const N: usize> ReversalStack<N> {
         let Some(seg) = self.segment(model, branch, offset_scale) else {
             return x_branch;
         };
-        let w = params.blend((x_branch - seg.b_t) * seg.inv_span);
-        let x = x_branch + seg.d_t + seg.d_rt * w;
+        seg.eval(params.blend_coeffs(), model, x_branch)
+    }
+
+    /// [`Self::contraction`] for the [`Simulator`](super::Simulator), given
+    /// `x_branch = branch_contraction(model, pressure_mpa, branch,
+    /// offset_scale)`: `Some(x)` on a minor loop (then `x` is
+    /// [`Self::contraction`]'s result, within the stroke), `None` with no
+    /// reversal remembered (then [`Self::contraction`] returns `x_branch`).
+    /// `pressure_mpa` must be finite.
+    ///
+    /// The per-sample path tests only what changes between samples in the
+    /// simulator: the wiping-out threshold and the offset scale. The caller
+    /// keeps the rest of the cache key: it calls [`Self::invalidate`] when
+    /// `branch` changes and [`Self::clear`] when `model` does (`blend` is
+    /// fixed).
+    #[inline]
+    pub(crate) fn follow(
+        &mut self,
+        blend: Blend,
+        model: &LoadModel,
+        pressure_mpa: f32,
+        x_branch: f32,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> Option<f32> {
+        if let Some(seg) = &self.segment {
+            // Negation is exact: `−p > −θ` is `p < θ`, infinities included.
+            let wiped = seg.wipe_sign * pressure_mpa > seg.wipe_mpa;
+            if !wiped && seg.scale_bits == offset_scale.to_bits() {
+                return Some(seg.eval(blend, model, x_branch));
+            }
+        } else if self.len == 0 {
+            return None;
+        }
+        self.follow_slow(blend, model, pressure_mpa, x_branch, branch, offset_scale)
+    }
+
+    /// The rare path of [`Self::follow`]: a wipe-out, or a new minor loop.
+    #[inline(never)]
+    fn follow_slow(
+        &mut self,
+        blend: Blend,
+        model: &LoadModel,
+        pressure_mpa: f32,
+        x_branch: f32,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> Option<f32> {
+        let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
+        self.wipe_out(p, branch);
+        let seg = self.segment(model, branch, offset_scale)?;
+        Some(seg.eval(blend, model, x_branch))
+    }
+}
+
+impl Segment {
+    /// `B(p) + d_t + (d_r − d_t)·w(s)` for `B(p) = x_branch`, within the stroke.
+    #[inline]
+    fn eval(&self, blend: Blend, model: &LoadModel, x_branch: f32) -> f32 {
+        let w = blend.apply((x_branch - self.b_t) * self.inv_span);
+        let x = x_branch + self.d_t + self.d_rt * w;
         clamp(x, model.root_contraction(), model.max_contraction())
+    }
+}
+
+/// The threshold `θ` of the wiping-out test for the point `target` below the
+/// top on `branch`: wiped out when `p > θ` rising, `p < θ` falling, for a
+/// finite unclamped `p`.
+///
+/// [`ReversalStack::wipe_out`] tests `c = clamp(p, 0, Pmax)` against `p_t`.
+/// Rising, `c > p_t` is `p > p_t` for `p_t` in `[0, Pmax)`, always true for
+/// `p_t < 0` (`c >= 0`) and never for `p_t >= Pmax` (`c <= Pmax`); falling,
+/// `c < p_t` is `p < p_t` for `p_t` in `(0, Pmax]`, never for `p_t <= 0` and
+/// always for `p_t > Pmax`.
+fn wipe_threshold(target: Option<Reversal>, branch: Branch, max_pressure_mpa: f32) -> f32 {
+    let (never, always) = match branch {
+        Branch::Contraction => (f32::INFINITY, f32::NEG_INFINITY),
+        Branch::Expansion => (f32::NEG_INFINITY, f32::INFINITY),
+    };
+    let Some(t) = target else {
+        return never;
+    };
+    let tp = t.pressure_mpa;
+    match branch {
+        Branch::Contraction if tp < 0.0 => always,
+        Branch::Contraction if tp >= max_pressure_mpa => never,
+        Branch::Expansion if tp <= 0.0 => never,
+        Branch::Expansion if tp > max_pressure_mpa => always,
+        _ => tp,
     }
 }
 

@@ -40,6 +40,7 @@ pub mod rate;
 pub mod width;
 
 pub use creep::{Creep, CreepState};
+use memory::Blend;
 pub use memory::{NonLocalMemory, Reversal, ReversalStack};
 pub use rate::{RateDependence, RateState};
 pub use width::LoadDependentWidth;
@@ -155,6 +156,8 @@ impl Effects {
 pub struct Simulator<const N: usize> {
     coeffs: Coeffs,
     effects: Effects,
+    /// `effects.memory`'s blend constants.
+    blend: Option<Blend>,
     tracker: Tracker,
     stack: ReversalStack<N>,
     rate: RateState,
@@ -183,6 +186,7 @@ impl<const N: usize> Simulator<N> {
         Ok(Simulator {
             coeffs,
             effects,
+            blend: effects.memory.map(|m| m.blend_coeffs()),
             tracker,
             stack: ReversalStack::default(),
             rate: RateState::default(),
@@ -286,17 +290,28 @@ impl<const N: usize> Simulator<N> {
         let scale = self.offset_scale();
         let model = self.tracker.model();
 
-        let x_static = match &self.effects.memory {
-            Some(mem) => {
+        // `p` is finite here, as `ReversalStack::follow` needs.
+        let x_branch = branch_contraction(model, p, branch, scale);
+        let (root, max) = (model.root_contraction(), model.max_contraction());
+        // The static contraction, and the same clamped to the stroke (the
+        // output without creep). On a minor loop of the memory it is within
+        // the stroke already, and the clamp is idempotent (the model's stroke
+        // is not empty, `R_i < Rx_i`).
+        let (x_static, x_clamped) = match self.blend {
+            Some(blend) => {
                 if switched {
                     if let Some(r) = self.extreme {
                         self.stack.push(r);
                     }
                     self.extreme = None;
+                    self.stack.invalidate();
                 }
-                self.stack.contraction(mem, model, p, branch, scale)
+                match self.stack.follow(blend, model, p, x_branch, branch, scale) {
+                    Some(x) => (x, x),
+                    None => (x_branch, clamp(x_branch, root, max)),
+                }
             }
-            None => branch_contraction(model, p, branch, scale),
+            None => (x_branch, clamp(x_branch, root, max)),
         };
         // Follow the sweep's extreme (the turning point of the next reversal).
         let beyond = match (self.extreme, branch) {
@@ -312,14 +327,17 @@ impl<const N: usize> Simulator<N> {
         }
 
         let x = match &self.effects.creep {
-            Some(c) => c.step(
-                &mut self.creep,
-                x_static,
-                if dt_ok { dt_s } else { f32::NAN },
+            Some(c) => clamp(
+                c.step(
+                    &mut self.creep,
+                    x_static,
+                    if dt_ok { dt_s } else { f32::NAN },
+                ),
+                root,
+                max,
             ),
-            None => x_static,
+            None => x_clamped,
         };
-        let x = clamp(x, model.root_contraction(), model.max_contraction());
         self.last_output = x;
         x
     }
