@@ -1003,15 +1003,20 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     })
 }
 
-/// Base parameters the joint refit moves: the critical points' pressures
-/// (the curve's shape through the stroke), the stroke end, the ellipse
-/// height and the load growth of the cubic.
-pub const BASE_REFIT_FIELDS: [&str; 5] = [
+/// Base parameters the joint refit moves: the critical points (the curve's
+/// shape through the stroke), the stroke ends, the ellipse height and the
+/// load family (the cubic's growth, the regressions of the stroke ends).
+pub const BASE_REFIT_FIELDS: [&str; 10] = [
     "tangency.pressure_mpa",
     "inflection.pressure_mpa",
     "max_contraction",
     "ellipse_height_mpa",
     "c_growth_per_step",
+    "root_contraction",
+    "tangency.contraction",
+    "inflection.contraction",
+    "root_regression_per_step",
+    "max_regression_per_step",
 ];
 
 fn base_field(p: &mut Params, k: usize) -> Option<&mut f32> {
@@ -1021,6 +1026,11 @@ fn base_field(p: &mut Params, k: usize) -> Option<&mut f32> {
         2 => Some(&mut p.points.max_contraction),
         3 => Some(&mut p.ellipse_height_mpa),
         4 => Some(&mut p.c_growth_per_step),
+        5 => Some(&mut p.points.root_contraction),
+        6 => Some(&mut p.points.tangency.contraction),
+        7 => Some(&mut p.points.inflection.contraction),
+        8 => Some(&mut p.root_regression_per_step),
+        9 => Some(&mut p.max_regression_per_step),
         _ => None,
     }
 }

@@ -3,12 +3,17 @@
 //! the rig's effect (or `none`), and should at least halve the held-out RMS
 //! where an effect is present.
 //!
-//! Status (measured, seed 7, short protocol; release / debug builds differ
-//! in the base fit): every plant is named right; held-out RMS cuts 73 %
-//! (memory), 55 % (creep), 49.7 % / 48 % (rate), 50.4 % / 46 % (width).
-//! The rate and width halving requirements are kept as ignored tests so
-//! they stay visible and runnable
-//! (`cargo test -p pam-lab --release --test diagnose_hidden -- --ignored`).
+//! Status (measured, seed 7, short protocol; debug and release builds give
+//! bit-identical reports): every plant is named right; held-out RMS cuts
+//! 51.8 % (memory, a Prandtl–Ishlinskii plant), 55.1 % (creep), 48.4 %
+//! (rate), 46.8 % (width). The rate and width halving requirements fail and
+//! are kept as ignored tests so they stay visible and runnable
+//! (`cargo test -p pam-lab --release --test diagnose_hidden -- --ignored`):
+//! width's "after" (0.00100) is already below the no-effect plant's error
+//! (0.00112, sensor noise and pressure noise through the curve), so halving
+//! its 0.00189 would need a model closer to the data than the noise allows;
+//! rate's remaining error is the linear law in `|ṗ|` against the plant's
+//! `|ṗ|^0.7` (fast ramps 0.0073 → 0.0028).
 //!
 //! Each plant is diagnosed once (a per-plant `OnceLock`), shared by its
 //! naming and halving tests, to keep the suite's debug run short.
@@ -101,13 +106,13 @@ fn non_local_memory_halves_the_error() {
 }
 
 #[test]
-#[ignore = "fails: held-out RMS cut 49.7 % (release), 48 % (debug); requirement is 50 %"]
+#[ignore = "fails: held-out RMS cut 48.4 % (0.00289 -> 0.00149); requirement is 50 %"]
 fn rate_dependence_halves_the_error() {
     halves(Plant::Rate);
 }
 
 #[test]
-#[ignore = "marginal: held-out RMS cut 50.4 % in release but 46 % in debug (the base fit differs); requirement is 50 %"]
+#[ignore = "fails: held-out RMS cut 46.8 % (0.00189 -> 0.00100, the no-effect plant's floor is 0.00112); requirement is 50 %"]
 fn load_dependent_width_halves_the_error() {
     halves(Plant::Width);
 }

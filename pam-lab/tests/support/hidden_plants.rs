@@ -5,10 +5,15 @@
 //!
 //! * the paper's branches come from an `f64` bisection of eqs. (21)–(26)
 //!   written here (only the load family's cubic is taken from pam-core);
-//! * `NonLocalMemory`: an unbounded list of turning points and the
-//!   *similarity* rule — a minor curve is the branch of its direction,
-//!   affinely rescaled to pass through its two turning points — instead of
-//!   the effect model's power-law blend of offsets;
+//! * `NonLocalMemory`: a Prandtl–Ishlinskii (Maxwell-slip) friction of
+//!   [`PLAY_OPERATORS`] play operators with thresholds spread over
+//!   `(0, 0.1]` MPa, whose normalised output `F ∈ [−1, 1]` replaces the
+//!   branch sign: the muscle sits where `cubic(x) + F·be·ellipse(x) = p`.
+//!   Its memory (wiping-out, congruent minor loops) comes from the play
+//!   operators' states, not from a list of turning points, and a reversal
+//!   crosses between the branches over `0.2` MPa of pressure instead of
+//!   jumping: neither the paper's jump nor the effect model's blend of
+//!   offsets between turning points;
 //! * `Rate`: ellipse height `be0 + c·|ṗ|^0.7` from the plant's own rate
 //!   (a viscous friction with a sub-linear law), not a linear factor;
 //! * `Creep`: a chain of two Kelvin–Voigt elements (1.5 s and 6 s), not one
@@ -32,7 +37,7 @@ use pam_core::{Coeffs, Params};
 pub enum Plant {
     /// The paper's model only.
     None,
-    /// Minor loops that close on the previous turning point.
+    /// Minor loops with non-local memory (a Prandtl–Ishlinskii friction).
     NonLocalMemory,
     /// Loop height grows with the pressure rate.
     Rate,
@@ -56,6 +61,9 @@ impl Plant {
 }
 
 const HZ: f64 = 50.0;
+
+/// Play operators of the memory plant's Prandtl–Ishlinskii friction.
+pub const PLAY_OPERATORS: usize = 24;
 const DT: f64 = 1.0 / HZ;
 
 /// SplitMix64 + Box–Muller: deterministic noise without a dependency.
@@ -143,7 +151,8 @@ impl Muscle {
     }
 
     /// Contraction on a branch (`sign` +1 contraction, −1 expansion) at
-    /// pressure `p` with ellipse height `be` at `load`.
+    /// pressure `p` with ellipse height `be` at `load` (a negative `be`
+    /// flips the branch; between `±be` lies between the branches).
     fn branch_x(&self, load: f64, p: f64, sign: f64, be: f64) -> f64 {
         let at = self.coeffs.load_cubic(load as f32);
         let (r, rx) = (at.cubic.root, at.max_contraction);
@@ -203,10 +212,14 @@ pub fn respond(plant: Plant, drive: &[(f64, f64, f64)]) -> Vec<f64> {
     let mut out = Vec::with_capacity(drive.len());
     let mut sign = 1.0f64;
     let mut last_p = drive.first().map_or(0.0, |d| d.2);
-    // Memory plant: turning points (p, x), oldest first, unbounded.
-    let mut turns: Vec<(f64, f64)> = Vec::new();
-    let mut last_x = 0.0f64;
-    let mut last_load = drive.first().map_or(100.0, |d| d.1);
+    // Memory plant: play operators, threshold `r_i = 0.1·i/N` MPa, equal
+    // weights; each state starts at the first pressure (a relaxed muscle).
+    let p0 = drive.first().map_or(0.0, |d| d.2);
+    let thresholds: Vec<f64> = (1..=PLAY_OPERATORS)
+        .map(|i| 0.1 * i as f64 / PLAY_OPERATORS as f64)
+        .collect();
+    let full_friction: f64 = thresholds.iter().sum();
+    let mut plays: Vec<f64> = vec![p0; PLAY_OPERATORS];
     // Rate plant: the plant's own smoothed rate (0.1 s viscous time).
     let mut rate = 0.0f64;
     // Creep plant: two Kelvin–Voigt deficits and the previous static value.
@@ -214,19 +227,11 @@ pub fn respond(plant: Plant, drive: &[(f64, f64, f64)]) -> Vec<f64> {
     let mut last_static: Option<f64> = None;
     for &(_, load, p) in drive {
         let dp = p - last_p;
-        let reversed = dp * sign < -1e-12;
         if dp.abs() > 1e-12 {
-            if reversed && plant == Plant::NonLocalMemory {
-                turns.push((last_p, last_x));
-            }
             sign = dp.signum();
         }
         last_p = p;
         rate += (dp / DT - rate) * (DT / (0.1 + DT));
-        if load != last_load {
-            turns.clear();
-            last_load = load;
-        }
         let x = match plant {
             Plant::None | Plant::Creep => m.branch_x(load, p, sign, be0),
             Plant::Width => m.branch_x(load, p, sign, 0.008 * (load / 100.0).powf(1.3)),
@@ -235,39 +240,12 @@ pub fn respond(plant: Plant, drive: &[(f64, f64, f64)]) -> Vec<f64> {
                 m.branch_x(load, p, sign, be)
             }
             Plant::NonLocalMemory => {
-                // Wiping-out: drop closed loops.
-                while turns.len() >= 2 {
-                    let target = turns[turns.len() - 2];
-                    let passed = if sign > 0.0 {
-                        p > target.0
-                    } else {
-                        p < target.0
-                    };
-                    if passed {
-                        turns.truncate(turns.len() - 2);
-                    } else {
-                        break;
-                    }
+                let mut friction = 0.0;
+                for (y, r) in plays.iter_mut().zip(&thresholds) {
+                    *y = y.clamp(p - r, p + r);
+                    friction += p - *y;
                 }
-                let branch = |q: f64| m.branch_x(load, q, sign, be0);
-                match turns.last() {
-                    None => branch(p),
-                    Some(&(pr, xr)) => {
-                        let (pt, xt) = if turns.len() >= 2 {
-                            turns[turns.len() - 2]
-                        } else if sign > 0.0 {
-                            (m.pmax, branch(m.pmax))
-                        } else {
-                            (0.0, branch(0.0))
-                        };
-                        let (br, bt) = (branch(pr), branch(pt));
-                        if (br - bt).abs() < 1e-9 {
-                            xt
-                        } else {
-                            xt + (xr - xt) * (branch(p) - bt) / (br - bt)
-                        }
-                    }
-                }
+                m.branch_x(load, p, 1.0, be0 * friction / full_friction)
             }
         };
         let x = if plant == Plant::Creep {
@@ -282,7 +260,6 @@ pub fn respond(plant: Plant, drive: &[(f64, f64, f64)]) -> Vec<f64> {
         } else {
             x
         };
-        last_x = x;
         out.push(x);
     }
     out
