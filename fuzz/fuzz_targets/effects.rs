@@ -28,6 +28,7 @@ fuzz_target!(|data: &[u8]| {
         rate: (on & 2 != 0).then(|| RateDependence {
             scale_at_rest: f.near(1.0, 2.0),
             scale_per_mpa_per_s: f.near(2.0, 2.0),
+            ..RateDependence::NEUTRAL
         }),
         creep: (on & 4 != 0).then(|| Creep {
             gain: f.near(0.3, 2.0),

@@ -31,6 +31,9 @@ fn all_effects() -> Effects {
         rate: Some(RateDependence {
             scale_at_rest: 0.8,
             scale_per_mpa_per_s: 5.0,
+            // Not a sqrt fast path: the `powf` one.
+            exponent: 0.7,
+            filter_time_s: 0.1,
         }),
         creep: Some(Creep {
             gain: 0.3,
@@ -115,7 +118,7 @@ impl<const N: usize> Reference<N> {
             scale *= w.scale(self.coeffs.params(), self.tracker.load_n());
         }
         if let Some(r) = &self.rate {
-            self.rate_state.update(p, dt_s);
+            self.rate_state.update(p, dt_s, r.filter_time_s);
             scale *= r.scale(&self.rate_state);
         }
         let scale = scale.clamp(0.0, MAX_OFFSET_SCALE);
@@ -171,6 +174,7 @@ proptest! {
         shape in 0.05f32..50.0,
         width in any::<bool>(),
         rate in any::<bool>(),
+        exponent_pick in any::<u8>(),
         on_branch in any::<bool>(),
     ) {
         let memory = NonLocalMemory { shape };
@@ -183,6 +187,8 @@ proptest! {
         let rate = rate.then_some(RateDependence {
             scale_at_rest: 0.9,
             scale_per_mpa_per_s: 2.0,
+            exponent: [0.5, 0.75, 1.0, 1.3][usize::from(exponent_pick) % 4],
+            filter_time_s: 0.2,
         });
         let effects = Effects { memory: Some(memory), width, rate, ..Effects::NONE };
         let mut sim = Simulator::<3>::new(coeffs(), effects, TrackerConfig::DEFAULT_PRESSURE, 200.0).unwrap();
@@ -280,7 +286,8 @@ proptest! {
     #[test]
     fn effect_validation_never_panics(a in any_f32(), b in any_f32()) {
         let _ = NonLocalMemory { shape: a }.validate();
-        let _ = RateDependence { scale_at_rest: a, scale_per_mpa_per_s: b }.validate();
+        let _ = RateDependence { scale_at_rest: a, scale_per_mpa_per_s: b, exponent: 1.0, filter_time_s: 0.3 }.validate();
+        let _ = RateDependence { scale_at_rest: 1.0, scale_per_mpa_per_s: 1.0, exponent: a, filter_time_s: b }.validate();
         let _ = Creep { gain: a, time_constant_s: b }.validate();
         let _ = LoadDependentWidth { scale_at_min_load: a, scale_per_step: b }.validate();
     }

@@ -40,6 +40,7 @@ use std::path::Path;
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use pam_core::effects::rate::RATE_EXPONENT_RANGE;
 use pam_core::effects::{Creep, LoadDependentWidth, NonLocalMemory, RateDependence};
 use pam_core::{Branch, Coeffs, Effects, Params, Simulator, Tracker, TrackerConfig};
 use serde::Serialize;
@@ -83,10 +84,22 @@ impl EffectKind {
         }
     }
 
-    /// Number of parameters the effect adds.
+    /// Number of parameters the effect adds (the rate's exponent, chosen
+    /// from [`RATE_EXPONENTS`] by the fit, counts as one).
     pub fn parameter_count(self) -> usize {
         match self {
             EffectKind::NonLocalMemory => 1,
+            EffectKind::RateDependence => 4,
+            _ => 2,
+        }
+    }
+
+    /// How many leading entries of `theta` the optimiser moves; the rest
+    /// (the rate's exponent) are fixed per start.
+    fn free_count(self) -> usize {
+        match self {
+            EffectKind::NonLocalMemory => 1,
+            EffectKind::RateDependence => 3,
             _ => 2,
         }
     }
@@ -106,10 +119,19 @@ impl EffectKind {
     fn starts(self) -> Vec<Vec<f64>> {
         match self {
             EffectKind::NonLocalMemory => vec![vec![memory_theta(1.0)], vec![memory_theta(5.0)]],
-            EffectKind::RateDependence => vec![
-                vec![logit(1.0 / 4.0), logit(2.0 / 100.0)],
-                vec![logit(0.6 / 4.0), logit(10.0 / 100.0)],
-            ],
+            // One start per exponent: factor 1 at rest, 5 per (MPa/s)^n,
+            // a 0.2 s filter.
+            EffectKind::RateDependence => RATE_EXPONENTS
+                .iter()
+                .map(|&n| {
+                    vec![
+                        logit(1.0 / 4.0),
+                        logit(5.0 / 100.0),
+                        rate_filter_theta(0.2),
+                        n,
+                    ]
+                })
+                .collect(),
             EffectKind::Creep => vec![
                 vec![logit(0.1 / 0.95), 1.0f64.ln()],
                 vec![logit(0.1 / 0.95), 5.0f64.ln()],
@@ -131,9 +153,16 @@ impl EffectKind {
                 })
             }
             EffectKind::RateDependence => {
+                let (n_lo, n_hi) = RATE_EXPONENT_RANGE;
+                let exponent = match theta.get(3) {
+                    Some(n) if n.is_finite() => (*n as f32).clamp(n_lo, n_hi),
+                    _ => 1.0,
+                };
                 e.rate = Some(RateDependence {
                     scale_at_rest: (4.0 * sigmoid(t(0))) as f32,
                     scale_per_mpa_per_s: (100.0 * sigmoid(t(1))) as f32,
+                    exponent,
+                    filter_time_s: rate_filter_time(t(2)) as f32,
                 })
             }
             EffectKind::Creep => {
@@ -160,6 +189,20 @@ impl EffectKind {
             EffectKind::LoadDependentWidth => e.width.is_some(),
         }
     }
+}
+
+/// Exponents of the rate law the diagnosis tries: the ones pam-core
+/// evaluates with square roots (`powf` is a software routine on the M4).
+pub const RATE_EXPONENTS: [f64; 3] = [0.5, 0.75, 1.0];
+
+/// The rate filter's time constant from its unbounded coordinate: logistic
+/// over `[0.02, 1]` s.
+fn rate_filter_time(theta: f64) -> f64 {
+    (0.02 + 0.98 * sigmoid(theta)).clamp(0.02, 1.0)
+}
+
+fn rate_filter_theta(tau: f64) -> f64 {
+    logit((tau - 0.02) / 0.98)
 }
 
 /// The memory's `k` from its unbounded coordinate: logarithmic over
@@ -637,14 +680,21 @@ struct CandidateProblem<'s, 'a> {
     coeffs: Coeffs,
     kind: EffectKind,
     base: Effects,
+    /// The parameters the optimiser moves.
     theta: DVector<f64>,
+    /// The ones it does not (appended to `theta` for [`EffectKind::apply`]).
+    fixed: Vec<f64>,
 }
 
 impl CandidateProblem<'_, '_> {
+    fn full(&self, theta: &[f64]) -> Vec<f64> {
+        theta.iter().chain(&self.fixed).copied().collect()
+    }
+
     fn residuals_at(&self, theta: &[f64]) -> DVector<f64> {
         let res = self
             .setup
-            .residuals_with(&self.coeffs, self.kind.apply(self.base, theta));
+            .residuals_with(&self.coeffs, self.kind.apply(self.base, &self.full(theta)));
         DVector::from_iterator(
             self.setup.train_idx.len(),
             self.setup.train_idx.iter().map(|&i| res[i]),
@@ -1140,20 +1190,22 @@ fn evaluate_candidate(
 ) -> CandidateResult {
     let fit_effect = |coeffs: Coeffs, starts: Vec<Vec<f64>>| -> Vec<f64> {
         let mut best: Option<(f64, Vec<f64>)> = None;
-        for start in starts {
+        for mut start in starts {
+            let fixed = start.split_off(kind.free_count().min(start.len()));
             let problem = CandidateProblem {
                 setup,
                 coeffs,
                 kind,
                 base: current,
                 theta: DVector::from_vec(start),
+                fixed,
             };
             let (problem, report) = LevenbergMarquardt::new()
                 .with_patience(cfg.patience)
                 .minimize(problem);
             let cost = report.objective_function;
             if cost.is_finite() && best.as_ref().is_none_or(|(c, _)| cost < *c) {
-                best = Some((cost, problem.theta.as_slice().to_vec()));
+                best = Some((cost, problem.full(problem.theta.as_slice())));
             }
         }
         best.map(|(_, t)| t).unwrap_or_default()
@@ -1344,6 +1396,20 @@ mod tests {
                 assert!(e.validate().is_ok(), "{kind:?} {t}: {e:?}");
                 assert!(kind.is_on(&e));
             }
+        }
+        for n in [0.5, 0.75, 1.0, 0.0, 9.0, f64::NAN] {
+            for t in [-50.0, 0.0, 50.0] {
+                let e = EffectKind::RateDependence.apply(Effects::NONE, &[t, -t, t, n]);
+                assert!(e.validate().is_ok(), "{n} {t}: {e:?}");
+            }
+        }
+        for start in EffectKind::RateDependence.starts() {
+            let r = EffectKind::RateDependence
+                .apply(Effects::NONE, &start)
+                .rate
+                .unwrap();
+            assert!(RATE_EXPONENTS.contains(&f64::from(r.exponent)));
+            assert!((r.filter_time_s - 0.2).abs() < 1e-6, "{r:?}");
         }
     }
 

@@ -3,17 +3,16 @@
 //! the rig's effect (or `none`), and should at least halve the held-out RMS
 //! where an effect is present.
 //!
-//! Status (measured, seed 7, short protocol; debug and release builds give
-//! bit-identical reports): every plant is named right; held-out RMS cuts
-//! 51.8 % (memory, a Prandtl–Ishlinskii plant), 55.1 % (creep), 48.4 %
-//! (rate), 46.8 % (width). The rate and width halving requirements fail and
-//! are kept as ignored tests so they stay visible and runnable
+//! Status (measured, seed 7, short protocol, debug build): every plant is named right; held-out RMS cuts
+//! 51.8 % (memory, a Prandtl–Ishlinskii plant), 55.1 % (creep), 61.4 %
+//! (rate, with the power law `|ṗ|^n`: `n` = 0.75 and a 0.117 s filter
+//! fitted against the plant's 0.7 and 0.1 s; the linear law gave 48.4 %),
+//! 46.8 % (width). The width halving requirement fails and is kept as an
+//! ignored test so it stays visible and runnable
 //! (`cargo test -p pam-lab --release --test diagnose_hidden -- --ignored`):
 //! width's "after" (0.00100) is already below the no-effect plant's error
 //! (0.00112, sensor noise and pressure noise through the curve), so halving
-//! its 0.00189 would need a model closer to the data than the noise allows;
-//! rate's remaining error is the linear law in `|ṗ|` against the plant's
-//! `|ṗ|^0.7` (fast ramps 0.0073 → 0.0028).
+//! its 0.00189 would need a model closer to the data than the noise allows.
 //!
 //! Each plant is diagnosed once (a per-plant `OnceLock`), shared by its
 //! naming and halving tests, to keep the suite's debug run short.
@@ -106,9 +105,18 @@ fn non_local_memory_halves_the_error() {
 }
 
 #[test]
-#[ignore = "fails: held-out RMS cut 48.4 % (0.00289 -> 0.00149); requirement is 50 %"]
 fn rate_dependence_halves_the_error() {
     halves(Plant::Rate);
+}
+
+#[test]
+fn rate_law_is_sub_linear_like_the_plant() {
+    // The plant's loop height grows as |ṗ|^0.7; of the exponents tried
+    // (0.5, 0.75, 1) the fit must not pick the linear law.
+    let r = names(Plant::Rate);
+    let rate = r.effects.rate.expect("rate effect on");
+    eprintln!("fitted rate law: {rate:?}");
+    assert!(rate.exponent < 1.0, "{rate:?}");
 }
 
 #[test]

@@ -5,7 +5,7 @@
 //! | effect | what it adds | parameters |
 //! |---|---|---|
 //! | [`NonLocalMemory`] | minor loops closing at the previous reversal, with wiping-out | `shape` |
-//! | [`RateDependence`] | ellipse height grows with the pressure rate | `scale_at_rest`, `scale_per_mpa_per_s` |
+//! | [`RateDependence`] | ellipse height grows with a power of the pressure rate | `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s` |
 //! | [`Creep`] | slow first-order relaxation after pressure steps | `gain`, `time_constant_s` |
 //! | [`LoadDependentWidth`] | ellipse height linear in load | `scale_at_min_load`, `scale_per_step` |
 //!
@@ -284,8 +284,9 @@ impl<const N: usize> Simulator<N> {
             self.stack.clear();
             self.extreme = None;
         }
-        if self.effects.rate.is_some() {
-            self.rate.update(p, if dt_ok { dt_s } else { f32::NAN });
+        if let Some(r) = &self.effects.rate {
+            self.rate
+                .update(p, if dt_ok { dt_s } else { f32::NAN }, r.filter_time_s);
         }
         let scale = self.offset_scale();
         let model = self.tracker.model();

@@ -1,18 +1,33 @@
 //! Rate dependence: the loop widens with the pressure rate (a viscous
 //! contribution the paper's rate-independent ellipse lacks).
 //!
-//! `be(ṗ) = be · (scale_at_rest + scale_per_mpa_per_s · |ṗ|)`, where `ṗ` is the
-//! pressure rate through a first-order low-pass of [`RATE_FILTER_TIME_S`]
-//! (the raw difference of a 50 Hz signal with 0.001 MPa noise is ±0.07 MPa/s
-//! of noise; the filter brings it to about ±0.01 MPa/s).
+//! `be(ṗ) = be · (scale_at_rest + scale_per_mpa_per_s · (|ṗ|/ṗ_ref)^n)`,
+//! `ṗ_ref` = 1 MPa/s, where `ṗ` is the pressure rate through a first-order
+//! low-pass of time constant `filter_time_s` (default
+//! [`RATE_FILTER_TIME_S`]: the raw difference of a 50 Hz signal with
+//! 0.001 MPa noise is ±0.07 MPa/s of noise; 0.3 s brings it to about
+//! ±0.01 MPa/s).
+//!
+//! The exponent `n` is the power law of rate-dependent friction (rubber and
+//! braid friction is commonly sub-linear in the sliding rate, `n < 1`);
+//! `n = 1` is the linear law. Cost per sample: `n` = 1, 0.5 and 0.75 take
+//! no, one and two square roots (`vsqrt` on the M4F, 14 cycles each); any
+//! other `n` calls `libm::powf`, a software routine of a few hundred
+//! instructions — fit `n` from {0.5, 0.75, 1} where that matters.
 
 use crate::error::Error;
-use crate::math::clamp;
+use crate::math::{clamp, sqrt};
 
 use super::MAX_OFFSET_SCALE;
 
 /// Time constant of the pressure-rate filter, s.
 pub const RATE_FILTER_TIME_S: f32 = 0.3;
+
+/// Range of the rate exponent `n`.
+pub const RATE_EXPONENT_RANGE: (f32, f32) = (0.3, 1.5);
+
+/// Longest filter time constant, s.
+pub const MAX_RATE_FILTER_TIME_S: f32 = 10.0;
 
 /// Largest pressure rate the filter accepts, MPa/s: a step is seen as this
 /// rate, so that one sample of a valve jump cannot swamp the filter state.
@@ -25,8 +40,14 @@ pub const MAX_RATE_MPA_PER_S: f32 = 5.0;
 pub struct RateDependence {
     /// Factor on `be` when the pressure is held.
     pub scale_at_rest: f32,
-    /// Growth of the factor per MPa/s of pressure rate.
+    /// Growth of the factor at a pressure rate of 1 MPa/s (per MPa/s when
+    /// `exponent` is 1).
     pub scale_per_mpa_per_s: f32,
+    /// Power `n` of the rate law, in [`RATE_EXPONENT_RANGE`]; 1 is linear.
+    pub exponent: f32,
+    /// Time constant of the pressure-rate filter, s, in
+    /// `[0, MAX_RATE_FILTER_TIME_S]` (0: the raw difference).
+    pub filter_time_s: f32,
 }
 
 /// Filter state of [`RateDependence`].
@@ -43,16 +64,49 @@ impl RateDependence {
     pub const NEUTRAL: RateDependence = RateDependence {
         scale_at_rest: 1.0,
         scale_per_mpa_per_s: 0.0,
+        exponent: 1.0,
+        filter_time_s: RATE_FILTER_TIME_S,
     };
 
+    /// The linear law (`n` = 1) with the default filter.
+    pub const fn linear(scale_at_rest: f32, scale_per_mpa_per_s: f32) -> RateDependence {
+        RateDependence {
+            scale_at_rest,
+            scale_per_mpa_per_s,
+            exponent: 1.0,
+            filter_time_s: RATE_FILTER_TIME_S,
+        }
+    }
+
     /// Finite; factor at rest in `[0, MAX_OFFSET_SCALE]`; growth in
-    /// `[0, 100]` per MPa/s (a loop cannot narrow with speed in this model).
+    /// `[0, 100]` at 1 MPa/s (a loop cannot narrow with speed in this model);
+    /// exponent in [`RATE_EXPONENT_RANGE`]; filter time constant in
+    /// `[0, MAX_RATE_FILTER_TIME_S]` s.
     pub fn validate(&self) -> Result<(), Error> {
         if !self.scale_at_rest.is_finite() {
             return Err(Error::NonFinite("rate.scale_at_rest"));
         }
         if !self.scale_per_mpa_per_s.is_finite() {
             return Err(Error::NonFinite("rate.scale_per_mpa_per_s"));
+        }
+        if !self.exponent.is_finite() {
+            return Err(Error::NonFinite("rate.exponent"));
+        }
+        if !self.filter_time_s.is_finite() {
+            return Err(Error::NonFinite("rate.filter_time_s"));
+        }
+        let (n_lo, n_hi) = RATE_EXPONENT_RANGE;
+        if !(self.exponent >= n_lo && self.exponent <= n_hi) {
+            return Err(Error::OutOfRange(
+                "rate.exponent",
+                "must be in RATE_EXPONENT_RANGE (0.3 to 1.5)",
+            ));
+        }
+        if !(self.filter_time_s >= 0.0 && self.filter_time_s <= MAX_RATE_FILTER_TIME_S) {
+            return Err(Error::OutOfRange(
+                "rate.filter_time_s",
+                "must be in [0, MAX_RATE_FILTER_TIME_S] s",
+            ));
         }
         if !(self.scale_at_rest >= 0.0 && self.scale_at_rest <= MAX_OFFSET_SCALE) {
             return Err(Error::OutOfRange(
@@ -73,10 +127,29 @@ impl RateDependence {
     /// clamped to `[0, MAX_OFFSET_SCALE]`.
     pub fn scale(&self, state: &RateState) -> f32 {
         clamp(
-            self.scale_at_rest + self.scale_per_mpa_per_s * state.rate_mpa_per_s.abs(),
+            self.scale_at_rest + self.scale_per_mpa_per_s * self.rate_term(state.rate_mpa_per_s),
             0.0,
             MAX_OFFSET_SCALE,
         )
+    }
+
+    /// `(|ṗ| / 1 MPa/s)^n`; finite and non-negative for any finite rate (the
+    /// filtered rate is within `±MAX_RATE_MPA_PER_S`) and a validated `n`.
+    fn rate_term(&self, rate_mpa_per_s: f32) -> f32 {
+        let x = rate_mpa_per_s.abs();
+        let n = self.exponent;
+        if n == 1.0 {
+            x
+        } else if n == 0.5 {
+            sqrt(x)
+        } else if n == 0.75 {
+            let s = sqrt(x);
+            s * sqrt(s)
+        } else if x > 0.0 {
+            libm::powf(x, n)
+        } else {
+            0.0
+        }
     }
 }
 
@@ -86,10 +159,12 @@ impl RateState {
         self.rate_mpa_per_s
     }
 
-    /// Feed a pressure sample `dt_s` after the previous one. A non-finite
-    /// pressure, or a `dt_s` that is not in `(0, 1]` s, leaves the state as
-    /// it was (the rate is held rather than guessed).
-    pub fn update(&mut self, pressure_mpa: f32, dt_s: f32) {
+    /// Feed a pressure sample `dt_s` after the previous one, through a
+    /// low-pass of time constant `filter_time_s` (negative or non-finite:
+    /// [`RATE_FILTER_TIME_S`]). A non-finite pressure, or a `dt_s` that is
+    /// not in `(0, 1]` s, leaves the state as it was (the rate is held
+    /// rather than guessed).
+    pub fn update(&mut self, pressure_mpa: f32, dt_s: f32, filter_time_s: f32) {
         if !pressure_mpa.is_finite() {
             return;
         }
@@ -108,7 +183,12 @@ impl RateState {
         );
         // Exact first-order hold discretisation would need exp(); dt ≪ τ at
         // the rates this runs at, where dt/(τ + dt) is within 1 % of it.
-        let alpha = dt_s / (RATE_FILTER_TIME_S + dt_s);
+        let tau = if (0.0..=MAX_RATE_FILTER_TIME_S).contains(&filter_time_s) {
+            filter_time_s
+        } else {
+            RATE_FILTER_TIME_S
+        };
+        let alpha = dt_s / (tau + dt_s);
         self.rate_mpa_per_s += alpha * (raw - self.rate_mpa_per_s);
         self.last_pressure_mpa = Some(pressure_mpa);
     }
@@ -122,35 +202,113 @@ mod tests {
     fn filtered_rate_settles_on_a_ramp() {
         let mut s = RateState::default();
         for k in 0..500 {
-            s.update(0.1 * k as f32 * 0.02, 0.02);
+            s.update(0.1 * k as f32 * 0.02, 0.02, RATE_FILTER_TIME_S);
         }
         assert!((s.rate_mpa_per_s() - 0.1).abs() < 1e-3, "{s:?}");
-        let r = RateDependence {
-            scale_at_rest: 1.0,
-            scale_per_mpa_per_s: 10.0,
-        };
+        let r = RateDependence::linear(1.0, 10.0);
         assert!((r.scale(&s) - 2.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn exponent_gives_the_power_law() {
+        let mut s = RateState::default();
+        for k in 0..500 {
+            s.update(0.2 * k as f32 * 0.02, 0.02, RATE_FILTER_TIME_S);
+        }
+        let r = s.rate_mpa_per_s() as f64;
+        assert!((r - 0.2).abs() < 1e-3, "{s:?}");
+        for n in [0.3f32, 0.5, 0.7, 0.75, 1.0, 1.5] {
+            let law = RateDependence {
+                exponent: n,
+                ..RateDependence::linear(1.0, 2.0)
+            };
+            assert_eq!(law.validate(), Ok(()));
+            let want = 1.0 + 2.0 * r.powf(f64::from(n));
+            let got = f64::from(law.scale(&s));
+            assert!((got - want).abs() < 1e-4 * want, "n = {n}: {got} vs {want}");
+        }
+        // Sub-linear grows faster below 1 MPa/s: 0.2^0.5 = 0.447 > 0.2
+        // (1.894 vs 1.4).
+        let half = RateDependence {
+            exponent: 0.5,
+            ..RateDependence::linear(1.0, 2.0)
+        };
+        assert!(half.scale(&s) > RateDependence::linear(1.0, 2.0).scale(&s) + 0.4);
+        // At rest every law gives the factor at rest, exactly.
+        let rest = RateState::default();
+        for n in [0.3f32, 0.5, 0.7, 0.75, 1.0, 1.5] {
+            let law = RateDependence {
+                exponent: n,
+                ..RateDependence::linear(0.7, 2.0)
+            };
+            assert_eq!(law.scale(&rest), 0.7);
+        }
+    }
+
+    #[test]
+    fn filter_time_constant_sets_the_lag() {
+        // After a step onto a ramp, the filtered rate reaches 63 % of it
+        // after about one time constant.
+        for tau in [0.1f32, 0.3, 1.0] {
+            let mut s = RateState::default();
+            let dt = 0.001;
+            let steps = (tau / dt).round() as usize;
+            for k in 0..=steps {
+                s.update(k as f32 * dt, dt, tau);
+            }
+            let r = s.rate_mpa_per_s();
+            assert!((r - 0.632).abs() < 0.01, "tau = {tau}: {r}");
+        }
+        // tau = 0: the raw difference.
+        let mut s = RateState::default();
+        s.update(0.0, 0.02, 0.0);
+        s.update(0.01, 0.02, 0.0);
+        assert!((s.rate_mpa_per_s() - 0.5).abs() < 1e-6);
     }
 
     #[test]
     fn bad_samples_are_ignored() {
         let mut s = RateState::default();
-        s.update(0.1, 0.02);
-        s.update(f32::NAN, 0.02);
-        s.update(0.2, f32::NAN);
-        s.update(0.3, -1.0);
+        s.update(0.1, 0.02, RATE_FILTER_TIME_S);
+        s.update(f32::NAN, 0.02, RATE_FILTER_TIME_S);
+        s.update(0.2, f32::NAN, RATE_FILTER_TIME_S);
+        s.update(0.3, -1.0, RATE_FILTER_TIME_S);
         assert_eq!(s.rate_mpa_per_s(), 0.0);
-        s.update(1e30, 0.02);
+        s.update(1e30, 0.02, f32::NAN);
         assert!(s.rate_mpa_per_s() <= MAX_RATE_MPA_PER_S);
+        assert!(s.rate_mpa_per_s().is_finite());
     }
 
     #[test]
     fn validation() {
         assert_eq!(RateDependence::NEUTRAL.validate(), Ok(()));
-        let bad = RateDependence {
-            scale_at_rest: 1.0,
-            scale_per_mpa_per_s: -1.0,
-        };
-        assert!(bad.validate().is_err());
+        assert!(RateDependence::linear(1.0, -1.0).validate().is_err());
+        let ok = RateDependence::linear(1.0, 5.0);
+        for n in [0.29f32, 1.51, f32::NAN, f32::INFINITY] {
+            assert!(
+                RateDependence { exponent: n, ..ok }.validate().is_err(),
+                "{n}"
+            );
+        }
+        for tau in [-0.01f32, 10.01, f32::NAN] {
+            assert!(
+                RateDependence {
+                    filter_time_s: tau,
+                    ..ok
+                }
+                .validate()
+                .is_err(),
+                "{tau}"
+            );
+        }
+        assert_eq!(
+            RateDependence {
+                filter_time_s: 0.0,
+                exponent: 0.3,
+                ..ok
+            }
+            .validate(),
+            Ok(())
+        );
     }
 }
