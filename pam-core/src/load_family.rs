@@ -171,10 +171,11 @@ impl Coeffs {
         let p = &self.params;
         let s = f64::from(load_n - p.min_load_n) / f64::from(p.load_step_n);
         let root = self.factor.root - f64::from(p.root_regression_per_step) * s; // eq. (17)
-        let rx = f64::from(p.points.max_contraction) - f64::from(p.max_regression_per_step) * s; // eq. (18)
-                                                                                                 // eq. (19) from c1 of eq. (14); eq. (20) prints c1 = D1/R1, but the
-                                                                                                 // factor form's constant is −cR (eq. 5), so c1 = −D1/R1 — which is
-                                                                                                 // what eq. (14) gives (checked in the constraint tests).
+                                                                                 // eq. (18)
+        let rx = f64::from(p.points.max_contraction) - f64::from(p.max_regression_per_step) * s;
+        // eq. (19) from c1 of eq. (14); eq. (20) prints c1 = D1/R1, but the
+        // factor form's constant is −cR (eq. 5), so c1 = −D1/R1 — which is
+        // what eq. (14) gives (checked in the constraint tests).
         let c = self.factor.c + f64::from(p.c_growth_per_step) * s;
         let b = self.factor.b; // shared by all loads, eq. (21)
         let pmax = f64::from(p.points.max_pressure_mpa);
