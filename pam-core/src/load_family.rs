@@ -170,8 +170,9 @@ impl Coeffs {
         let load_n = self.clamp_load_n(load_n);
         let p = &self.params;
         let s = f64::from(load_n - p.min_load_n) / f64::from(p.load_step_n);
-        let root = self.factor.root - f64::from(p.root_regression_per_step) * s; // eq. (17)
-                                                                                 // eq. (18)
+        // eq. (17)
+        let root = self.factor.root - f64::from(p.root_regression_per_step) * s;
+        // eq. (18)
         let rx = f64::from(p.points.max_contraction) - f64::from(p.max_regression_per_step) * s;
         // eq. (19) from c1 of eq. (14); eq. (20) prints c1 = D1/R1, but the
         // factor form's constant is −cR (eq. 5), so c1 = −D1/R1 — which is
