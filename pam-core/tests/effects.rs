@@ -6,24 +6,11 @@ use pam_core::effects::{
     branch_contraction, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
     RateState, Reversal, ReversalStack, Simulator,
 };
-use pam_core::{Branch, Coeffs, Params, Tracker, TrackerConfig};
+use pam_core::{Branch, Coeffs, Tracker, TrackerConfig};
 use proptest::prelude::*;
 
-fn coeffs() -> Coeffs {
-    Coeffs::new(Params::DEFAULT).unwrap()
-}
-
-fn any_f32() -> impl Strategy<Value = f32> {
-    prop_oneof![
-        proptest::num::f32::ANY,
-        Just(f32::NAN),
-        Just(f32::INFINITY),
-        Just(f32::NEG_INFINITY),
-        -1.0f32..1.0,
-        0.0f32..0.6,
-        -1000.0f32..1000.0,
-    ]
-}
+mod common;
+use common::{any_f32, coeffs};
 
 fn all_effects() -> Effects {
     Effects {

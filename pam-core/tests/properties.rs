@@ -5,20 +5,8 @@ use pam_core::hysteresis::INVERSE_TOLERANCE_MPA;
 use pam_core::{blob, Branch, Coeffs, Params, Tracker, TrackerConfig};
 use proptest::prelude::*;
 
-fn coeffs() -> Coeffs {
-    Coeffs::new(Params::DEFAULT).unwrap()
-}
-
-fn any_f32() -> impl Strategy<Value = f32> {
-    prop_oneof![
-        proptest::num::f32::ANY,
-        Just(f32::NAN),
-        Just(f32::INFINITY),
-        Just(f32::NEG_INFINITY),
-        -1.0f32..1.0,
-        -1000.0f32..1000.0,
-    ]
-}
+mod common;
+use common::{any_f32, coeffs};
 
 fn branch() -> impl Strategy<Value = Branch> {
     prop_oneof![Just(Branch::Contraction), Just(Branch::Expansion)]
