@@ -1350,7 +1350,7 @@ mod tests {
         );
     }
 
-    const MEMORY: Feedforward = Feedforward::HysteresisMemory(NonLocalMemory { shape: 1.0 });
+    const MEMORY: Feedforward = Feedforward::HysteresisMemory(NonLocalMemory::with_shape(1.0));
 
     /// Sweep the set-point through `knots` at 1e-4 per sample with readings
     /// at the set-point; returns `(feedforward, branch switched)` per sample.
@@ -1456,7 +1456,7 @@ mod tests {
         cfg.feedforward = MEMORY;
         cfg.validate().unwrap();
         for shape in [0.0, f32::NAN, 51.0] {
-            cfg.feedforward = Feedforward::HysteresisMemory(NonLocalMemory { shape });
+            cfg.feedforward = Feedforward::HysteresisMemory(NonLocalMemory::with_shape(shape));
             assert!(matches!(
                 cfg.validate(),
                 Err(ConfigError::Invalid("feedforward", _))

@@ -24,6 +24,7 @@ fuzz_target!(|data: &[u8]| {
     let effects = Effects {
         memory: (on & 1 != 0).then(|| NonLocalMemory {
             shape: f.near(1.0, 2.0),
+            merge_span: f.near(0.1, 2.0),
         }),
         rate: (on & 2 != 0).then(|| RateDependence {
             scale_at_rest: f.near(1.0, 2.0),

@@ -179,7 +179,7 @@ pub struct Run {
 
 /// Non-local memory of [`Mode::FeedforwardMemoryPi`]: pam-core's linear
 /// blend (`shape` 1) between a turning point and the previous one.
-pub const MEMORY: NonLocalMemory = NonLocalMemory { shape: 1.0 };
+pub const MEMORY: NonLocalMemory = NonLocalMemory::with_shape(1.0);
 
 /// The controller configuration `mode` runs with.
 pub fn controller_config(mode: Mode, cfg: &BenchConfig) -> ControllerConfig {

@@ -14,7 +14,7 @@ use common::{any_f32, coeffs};
 
 fn all_effects() -> Effects {
     Effects {
-        memory: Some(NonLocalMemory { shape: 0.7 }),
+        memory: Some(NonLocalMemory::with_shape(0.7)),
         rate: Some(RateDependence {
             scale_at_rest: 0.8,
             scale_per_mpa_per_s: 5.0,
@@ -159,12 +159,13 @@ proptest! {
     fn simulator_memory_is_the_reversal_stack_bit_for_bit(
         legs in walk(),
         shape in 0.05f32..50.0,
+        merge_span in prop_oneof![Just(1.0f32), 0.002f32..0.3],
         width in any::<bool>(),
         rate in any::<bool>(),
         exponent_pick in any::<u8>(),
         on_branch in any::<bool>(),
     ) {
-        let memory = NonLocalMemory { shape };
+        let memory = NonLocalMemory { shape, merge_span };
         let width = width.then_some(LoadDependentWidth {
             scale_at_min_load: 1.2,
             scale_per_step: -0.1,
@@ -266,13 +267,14 @@ proptest! {
         s.wipe_out(probe, Branch::Contraction);
         s.wipe_out(probe, Branch::Expansion);
         let m = coeffs().load_model_clamped(200.0);
-        let x = s.contraction(&NonLocalMemory { shape: 2.0 }, &m, probe, Branch::Expansion, 1.0);
+        let x = s.contraction(&NonLocalMemory::with_shape(2.0), &m, probe, Branch::Expansion, 1.0);
         prop_assert!(x.is_finite());
     }
 
     #[test]
     fn effect_validation_never_panics(a in any_f32(), b in any_f32()) {
-        let _ = NonLocalMemory { shape: a }.validate();
+        let _ = NonLocalMemory::with_shape(a).validate();
+        let _ = NonLocalMemory { shape: 1.0, merge_span: a }.validate();
         let _ = RateDependence { scale_at_rest: a, scale_per_mpa_per_s: b, exponent: 1.0, filter_time_s: 0.3 }.validate();
         let _ = RateDependence { scale_at_rest: 1.0, scale_per_mpa_per_s: 1.0, exponent: a, filter_time_s: b }.validate();
         let _ = Creep { gain: a, time_constant_s: b }.validate();

@@ -40,6 +40,7 @@ use std::path::Path;
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use pam_core::effects::memory::MIN_MERGE_SPAN;
 use pam_core::effects::rate::RATE_EXPONENT_RANGE;
 use pam_core::effects::{Creep, LoadDependentWidth, NonLocalMemory, RateDependence};
 use pam_core::{Branch, Coeffs, Effects, Params, Simulator, Tracker, TrackerConfig};
@@ -88,7 +89,6 @@ impl EffectKind {
     /// from [`RATE_EXPONENTS`] by the fit, counts as one).
     pub fn parameter_count(self) -> usize {
         match self {
-            EffectKind::NonLocalMemory => 1,
             EffectKind::RateDependence => 4,
             _ => 2,
         }
@@ -98,7 +98,6 @@ impl EffectKind {
     /// (the rate's exponent) are fixed per start.
     fn free_count(self) -> usize {
         match self {
-            EffectKind::NonLocalMemory => 1,
             EffectKind::RateDependence => 3,
             _ => 2,
         }
@@ -118,7 +117,12 @@ impl EffectKind {
     /// [`Self::apply`].
     fn starts(self) -> Vec<Vec<f64>> {
         match self {
-            EffectKind::NonLocalMemory => vec![vec![memory_theta(1.0)], vec![memory_theta(5.0)]],
+            // A rescaled branch that merges within 0.03 of contraction, and
+            // a quicker blend that is not limited.
+            EffectKind::NonLocalMemory => vec![
+                vec![memory_theta(1.0), merge_theta(0.03)],
+                vec![memory_theta(5.0), merge_theta(0.5)],
+            ],
             // One start per exponent: factor 1 at rest, 5 per (MPa/s)^n,
             // a 0.2 s filter.
             EffectKind::RateDependence => RATE_EXPONENTS
@@ -150,6 +154,7 @@ impl EffectKind {
             EffectKind::NonLocalMemory => {
                 e.memory = Some(NonLocalMemory {
                     shape: memory_shape(t(0)) as f32,
+                    merge_span: merge_span(t(1)) as f32,
                 })
             }
             EffectKind::RateDependence => {
@@ -213,6 +218,18 @@ fn memory_shape(theta: f64) -> f64 {
 
 fn memory_theta(shape: f64) -> f64 {
     logit((shape / 0.05).ln() / 1000f64.ln())
+}
+
+/// The memory's merge span from its unbounded coordinate: logarithmic over
+/// `[MIN_MERGE_SPAN, 1]`.
+fn merge_span(theta: f64) -> f64 {
+    let lo = f64::from(MIN_MERGE_SPAN);
+    (lo * (1.0 / lo).powf(sigmoid(theta))).clamp(lo, 1.0)
+}
+
+fn merge_theta(span: f64) -> f64 {
+    let lo = f64::from(MIN_MERGE_SPAN);
+    logit((span / lo).ln() / (1.0 / lo).ln())
 }
 
 fn sigmoid(x: f64) -> f64 {
@@ -875,13 +892,24 @@ pub enum DiagnoseError {
 }
 
 /// Tracker settings for the denoised pressure of a record whose raw
-/// pressure noise is `noise_mpa`: a deadband of three raw sigmas (the median
-/// leaves about 0.4 of the noise, so its peak-to-peak stays inside), at
-/// least 0.002 MPa. A wider band delays every reversal, which where the
-/// curve is flat costs more than the noise it rejects.
-fn tracker_config(noise_mpa: f64) -> TrackerConfig {
+/// pressure noise is `noise_mpa` and load noise `load_noise_n`: a deadband
+/// of three raw sigmas (the median leaves about 0.4 of the noise, so its
+/// peak-to-peak stays inside), at least 0.002 MPa. A wider band delays every
+/// reversal, which where the curve is flat costs more than the noise it
+/// rejects.
+///
+/// The controller debounces a load change over several samples because its
+/// load cell is noisy; a record whose load column is clean (the rig's set
+/// load, held then stepped: noise below 1 N) switches the load model on the
+/// first sample of a step, as the muscle does. Otherwise every load step
+/// would leave a few samples on the old load's curve, a residual spike that
+/// no effect explains.
+fn tracker_config(noise_mpa: f64, load_noise_n: f64) -> TrackerConfig {
     let mut cfg = TrackerConfig::DEFAULT_PRESSURE;
     cfg.direction_deadband = (3.0 * noise_mpa).max(0.002) as f32;
+    if load_noise_n < 1.0 {
+        cfg.load_debounce_samples = 1;
+    }
     cfg
 }
 
@@ -927,9 +955,10 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     } else {
         fit.coeffs
     };
-    let tracker = tracker_config(crate::split::noise_std(
-        record.samples.iter().map(|s| s.pressure_mpa),
-    ));
+    let tracker = tracker_config(
+        crate::split::noise_std(record.samples.iter().map(|s| s.pressure_mpa)),
+        crate::split::noise_std(record.samples.iter().map(|s| s.load_n)),
+    );
     let train_idx: Vec<usize> = (0..samples.len()).filter(|&i| !heldout[i]).collect();
     let regimes = regimes(samples, &coeffs, tracker);
     let branches = hindsight_branches(samples, &coeffs, tracker);

@@ -245,9 +245,7 @@ fn main() -> ! {
         bench_simulator_step(&mut sim, t0 + dt, p, 200.0)
     });
     let memory = Effects {
-        memory: Some(NonLocalMemory {
-            shape: MEMORY_SHAPE,
-        }),
+        memory: Some(NonLocalMemory::with_shape(MEMORY_SHAPE)),
         ..Effects::NONE
     };
     let mut sim_mem = new_sim(memory);

@@ -253,7 +253,7 @@ fn identify_preisach(samples: &[Sample], heldout: &[bool]) -> PreisachTable<N, L
 
 fn memory_errors(coeffs: &Coeffs, shape: f32, samples: &[Sample], heldout: &[bool]) -> Errors {
     let effects = Effects {
-        memory: Some(NonLocalMemory { shape }),
+        memory: Some(NonLocalMemory::with_shape(shape)),
         ..Effects::NONE
     };
     let mut sim = Simulator::<16>::new(

@@ -20,6 +20,15 @@
 //! `x = B(p) + d_t + (d_r − d_t)·w(s)`, `s = (B(p) − B(p_t))/(B(p_r) − B(p_t))`,
 //! `w(s) = s / (s + k·(1 − s))`, `k` = [`NonLocalMemory::shape`].
 //!
+//! A real muscle forgets a reversal within a finite excursion: once the
+//! pressure has moved far enough from the turning point it is back on a
+//! branch (a Masing-type transition), however far away the target is. The
+//! merge span `m` ([`NonLocalMemory::merge_span`], in contraction) bounds the
+//! blend: `s = max(0, 1 − |B(p) − B(p_r)|/min(m, |B(p_r) − B(p_t)|))`. A loop
+//! longer than `m` has merged at the target's offset `d_t` after `m` of
+//! branch progress and runs parallel to the branch until it reaches `t`
+//! (so it still closes there); a shorter one is the plain blend above.
+//!
 //! `w` is a rational blend (one division, no `powf`) with `w(0) = 0`,
 //! `w(1) = 1`: `k = 1` moves the offset in proportion to the branch's own
 //! progress (the minor loop is the branch affinely rescaled through its two
@@ -58,16 +67,52 @@ pub struct NonLocalMemory {
     /// start), 1 rescales the branch, large values approach the paper's jump
     /// to the branch.
     pub shape: f32,
+    /// Branch progress, in contraction, over which a reversal's offset
+    /// decays, in `[MIN_MERGE_SPAN, 1]`: once the branch has moved this far
+    /// from the turning point the curve runs parallel to the branch (at the
+    /// target's offset) until it reaches the target. A minor loop shorter
+    /// than this is the plain blend; 1 (longer than any stroke, and what a
+    /// model file without the field means) never limits it.
+    #[cfg_attr(feature = "serde", serde(default = "unlimited_merge_span"))]
+    pub merge_span: f32,
+}
+
+/// Smallest [`NonLocalMemory::merge_span`].
+pub const MIN_MERGE_SPAN: f32 = 0.002;
+
+/// A [`NonLocalMemory::merge_span`] that never limits the blend.
+pub const UNLIMITED_MERGE_SPAN: f32 = 1.0;
+
+#[cfg(feature = "serde")]
+fn unlimited_merge_span() -> f32 {
+    UNLIMITED_MERGE_SPAN
 }
 
 impl NonLocalMemory {
-    /// Finite and in `[0.05, 50]`.
+    /// The blend of `shape` alone (no limit on the merge span).
+    pub const fn with_shape(shape: f32) -> NonLocalMemory {
+        NonLocalMemory {
+            shape,
+            merge_span: UNLIMITED_MERGE_SPAN,
+        }
+    }
+
+    /// Finite, shape in `[0.05, 50]`, merge span in `[MIN_MERGE_SPAN, 1]`.
     pub fn validate(&self) -> Result<(), Error> {
         if !self.shape.is_finite() {
             return Err(Error::NonFinite("memory.shape"));
         }
+        if !self.merge_span.is_finite() {
+            return Err(Error::NonFinite("memory.merge_span"));
+        }
         if !(self.shape >= 0.05 && self.shape <= 50.0) {
             return Err(Error::OutOfRange("memory.shape", "must be in [0.05, 50]"));
+        }
+        if !(self.merge_span >= MIN_MERGE_SPAN && self.merge_span <= UNLIMITED_MERGE_SPAN) {
+            return Err(Error::OutOfRange(
+                "memory.merge_span",
+                "must be in [MIN_MERGE_SPAN, 1]",
+            ));
         }
         Ok(())
     }
@@ -87,6 +132,7 @@ impl NonLocalMemory {
         Blend {
             k,
             one_minus_k: 1.0 - k,
+            inv_merge: 1.0 / clamp(self.merge_span, MIN_MERGE_SPAN, UNLIMITED_MERGE_SPAN),
         }
     }
 }
@@ -98,6 +144,8 @@ pub(crate) struct Blend {
     k: f32,
     /// `1 − k`.
     one_minus_k: f32,
+    /// `1/merge_span`, merge span clamped to `[MIN_MERGE_SPAN, 1]`.
+    inv_merge: f32,
 }
 
 impl Blend {
@@ -134,10 +182,13 @@ struct Segment {
     wipe_sign: f32,
     /// `wipe_sign` times the threshold of [`wipe_threshold`].
     wipe_mpa: f32,
-    /// `B(p_t)`.
-    b_t: f32,
-    /// `1/(B(p_r) − B(p_t))`, 0 for a degenerate loop.
-    inv_span: f32,
+    /// Bits of the [`Blend`]'s `inv_merge` it was computed with.
+    merge_bits: u32,
+    /// `B(p_r)`.
+    b_r: f32,
+    /// `1/(B(p_r) − B(p_t))`, raised in magnitude to `1/merge_span` when the
+    /// loop is longer than the merge span; 0 for a degenerate loop.
+    inv_progress: f32,
     /// `d_t`.
     d_t: f32,
     /// `d_r − d_t`.
@@ -227,17 +278,25 @@ impl<const N: usize> ReversalStack<N> {
 
     /// The minor loop from the top point, for `branch`, `model` and
     /// `offset_scale` (cached; two branch inverses on a miss).
-    fn segment(&mut self, model: &LoadModel, branch: Branch, offset_scale: f32) -> Option<Segment> {
+    fn segment(
+        &mut self,
+        blend: Blend,
+        model: &LoadModel,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> Option<Segment> {
         let (origin, target) = self.top2();
         let origin = origin?;
         let scale_bits = offset_scale.to_bits();
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
+        let merge_bits = blend.inv_merge.to_bits();
         if let Some(s) = self.segment {
             if s.branch == branch
                 && s.scale_bits == scale_bits
                 && s.load_bits == load_bits
                 && s.max_contraction_bits == max_contraction_bits
+                && s.merge_bits == merge_bits
             {
                 return Some(s);
             }
@@ -258,7 +317,14 @@ impl<const N: usize> ReversalStack<N> {
             }
         };
         let span = b_r - b_t;
-        let inv_span = if span.abs() > 1e-6 { 1.0 / span } else { 0.0 };
+        let degenerate = !(span.abs() > 1e-6);
+        let inv_progress = if degenerate {
+            0.0
+        } else if span > 0.0 {
+            (1.0 / span).max(blend.inv_merge)
+        } else {
+            (1.0 / span).min(-blend.inv_merge)
+        };
         let wipe_sign = match branch {
             Branch::Contraction => 1.0,
             Branch::Expansion => -1.0,
@@ -268,12 +334,18 @@ impl<const N: usize> ReversalStack<N> {
             scale_bits,
             load_bits,
             max_contraction_bits,
+            merge_bits,
             wipe_sign,
             wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
-            b_t,
-            inv_span,
+            b_r,
+            inv_progress,
             d_t,
-            d_rt: (origin.contraction - b_r) - d_t,
+            // A degenerate loop sits at the target's offset (s is 1 there).
+            d_rt: if degenerate {
+                0.0
+            } else {
+                (origin.contraction - b_r) - d_t
+            },
         };
         self.segment = Some(s);
         Some(s)
@@ -293,10 +365,11 @@ impl<const N: usize> ReversalStack<N> {
         let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
         self.wipe_out(p, branch);
         let x_branch = branch_contraction(model, p, branch, offset_scale);
-        let Some(seg) = self.segment(model, branch, offset_scale) else {
+        let blend = params.blend_coeffs();
+        let Some(seg) = self.segment(blend, model, branch, offset_scale) else {
             return x_branch;
         };
-        seg.eval(params.blend_coeffs(), model, x_branch)
+        seg.eval(blend, model, x_branch)
     }
 
     /// [`Self::contraction`] for the [`Simulator`](super::Simulator), given
@@ -346,16 +419,18 @@ impl<const N: usize> ReversalStack<N> {
     ) -> Option<f32> {
         let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
         self.wipe_out(p, branch);
-        let seg = self.segment(model, branch, offset_scale)?;
+        let seg = self.segment(blend, model, branch, offset_scale)?;
         Some(seg.eval(blend, model, x_branch))
     }
 }
 
 impl Segment {
-    /// `B(p) + d_t + (d_r − d_t)·w(s)` for `B(p) = x_branch`, within the stroke.
+    /// `B(p) + d_t + (d_r − d_t)·w(s)` for `B(p) = x_branch`, within the
+    /// stroke; `s = 1 + (B(p) − B(p_r))·inv_progress` (clamped to `[0, 1]`
+    /// by the blend).
     #[inline]
     fn eval(&self, blend: Blend, model: &LoadModel, x_branch: f32) -> f32 {
-        let w = blend.apply((x_branch - self.b_t) * self.inv_span);
+        let w = blend.apply(1.0 + (x_branch - self.b_r) * self.inv_progress);
         let x = x_branch + self.d_t + self.d_rt * w;
         clamp(x, model.root_contraction(), model.max_contraction())
     }
@@ -400,7 +475,7 @@ mod tests {
             .unwrap()
     }
 
-    const MEM: NonLocalMemory = NonLocalMemory { shape: 1.0 };
+    const MEM: NonLocalMemory = NonLocalMemory::with_shape(1.0);
 
     #[test]
     fn empty_stack_is_the_paper_model() {
@@ -443,6 +518,50 @@ mod tests {
     }
 
     #[test]
+    fn a_merge_span_ends_the_blend_early_and_still_closes_on_the_target() {
+        let m = model();
+        let bottom = Reversal {
+            pressure_mpa: 0.05,
+            contraction: m.contraction(0.05, Branch::Contraction),
+        };
+        let top = Reversal {
+            pressure_mpa: 0.4,
+            contraction: m.contraction(0.4, Branch::Contraction),
+        };
+        let quick = NonLocalMemory {
+            shape: 1.0,
+            merge_span: 0.02,
+        };
+        let run = |mem: &NonLocalMemory, p: f32| {
+            let mut s = ReversalStack::<8>::default();
+            s.push(bottom);
+            s.push(top);
+            s.contraction(mem, &m, p, Branch::Expansion, 1.0)
+        };
+        // No jump at the turn, either way.
+        assert!((run(&quick, 0.4) - top.contraction).abs() < 1e-5);
+        // Halfway down, the limited blend has already merged: the curve runs
+        // at the target's offset from the branch, away from the unlimited one.
+        let d_t = bottom.contraction - m.contraction(0.05, Branch::Expansion);
+        let mid = run(&quick, 0.2);
+        assert!((mid - (m.contraction(0.2, Branch::Expansion) + d_t)).abs() < 1e-5);
+        assert!(
+            (run(&MEM, 0.2) - mid).abs() > 1e-3,
+            "{} vs {mid}",
+            run(&MEM, 0.2)
+        );
+        // Both close exactly on the previous reversal.
+        assert!((run(&quick, 0.05) - bottom.contraction).abs() < 1e-5);
+        // The unlimited span is the plain blend of the branch's progress.
+        let b_r = m.contraction(0.4, Branch::Expansion);
+        let b_t = m.contraction(0.05, Branch::Expansion);
+        let b = m.contraction(0.2, Branch::Expansion);
+        let w = MEM.blend((b - b_t) / (b_r - b_t));
+        let want = b + d_t + ((top.contraction - b_r) - d_t) * w;
+        assert!((run(&MEM, 0.2) - want).abs() < 1e-5);
+    }
+
+    #[test]
     fn full_stack_drops_the_oldest() {
         let mut s = ReversalStack::<3>::default();
         for k in 0..5 {
@@ -466,9 +585,16 @@ mod tests {
     #[test]
     fn validation() {
         assert_eq!(MEM.validate(), Ok(()));
-        assert!(NonLocalMemory { shape: 0.0 }.validate().is_err());
+        for bad in [0.0, 0.001, 1.5] {
+            let m = NonLocalMemory {
+                shape: 1.0,
+                merge_span: bad,
+            };
+            assert!(m.validate().is_err(), "{bad}");
+        }
+        assert!(NonLocalMemory::with_shape(0.0).validate().is_err());
         assert_eq!(
-            NonLocalMemory { shape: f32::NAN }.validate(),
+            NonLocalMemory::with_shape(f32::NAN).validate(),
             Err(Error::NonFinite("memory.shape"))
         );
     }

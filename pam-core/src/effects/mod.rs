@@ -4,7 +4,7 @@
 //!
 //! | effect | what it adds | parameters |
 //! |---|---|---|
-//! | [`NonLocalMemory`] | minor loops closing at the previous reversal, with wiping-out | `shape` |
+//! | [`NonLocalMemory`] | minor loops closing at the previous reversal, with wiping-out | `shape`, `merge_span` |
 //! | [`RateDependence`] | ellipse height grows with a power of the pressure rate | `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s` |
 //! | [`Creep`] | slow first-order relaxation after pressure steps | `gain`, `time_constant_s` |
 //! | [`LoadDependentWidth`] | ellipse height linear in load | `scale_at_min_load`, `scale_per_step` |
@@ -18,7 +18,7 @@
 //!
 //! let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
 //! let effects = Effects {
-//!     memory: Some(NonLocalMemory { shape: 1.0 }),
+//!     memory: Some(NonLocalMemory::with_shape(1.0)),
 //!     ..Effects::NONE
 //! };
 //! let mut sim = Simulator::<16>::new(coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, 100.0).unwrap();
@@ -409,7 +409,7 @@ mod tests {
         let base = run::<8>(Effects::NONE, &samples);
         let mem = run::<8>(
             Effects {
-                memory: Some(NonLocalMemory { shape: 1.0 }),
+                memory: Some(NonLocalMemory::with_shape(1.0)),
                 ..Effects::NONE
             },
             &samples,
