@@ -25,7 +25,8 @@
 //! The protocol follows the examples' README: at 100, 200 and 300 N, two full
 //! cycles at 0.05 MPa/s, partial cycles reversing inside the loop, full cycles
 //! at 0.02 and 0.2 MPa/s, pressure steps to three levels with 8 s holds; then
-//! full cycles at random loads between 100 and 350 N. Sampled at 50 Hz with
+//! full cycles at random loads between 100 and 350 N (each of 100, 150, …,
+//! 350 N at most once, in a random order). Sampled at 50 Hz with
 //! 0.001 MPa pressure noise and 0.0008 contraction noise.
 
 #![allow(dead_code)]
@@ -88,7 +89,7 @@ impl Rng {
 
 /// The true (noise-free) drive: `(t_s, load_n, pressure_mpa)` at 50 Hz.
 /// `short` keeps one full cycle per load, the 0.02 MPa/s cycle only at the
-/// first load and four random-load cycles (for quick tests).
+/// first load (for quick tests).
 pub fn protocol(seed: u64, short: bool) -> Vec<(f64, f64, f64)> {
     let mut out = Vec::new();
     let mut p = 0.0f64;
@@ -127,9 +128,15 @@ pub fn protocol(seed: u64, short: bool) -> Vec<(f64, f64, f64)> {
         }
         ramp(&mut out, &mut p, load, 0.0, 0.05);
     }
-    let random_cycles = if short { 4 } else { 6 };
-    for _ in 0..random_cycles {
-        let load = 100.0 + 50.0 * (rng.uniform() * 6.0).floor().min(5.0);
+    // Random loads as a balanced design: the six loads 100, 150, …, 350 N
+    // in a random order, each once (Fisher–Yates), so that the held-out
+    // blocks see loads other than the training blocks' midpoint.
+    let mut loads: Vec<f64> = (0..6).map(|k| 100.0 + 50.0 * f64::from(k)).collect();
+    for i in (1..loads.len()).rev() {
+        let j = ((rng.uniform() * (i + 1) as f64) as usize).min(i);
+        loads.swap(i, j);
+    }
+    for &load in &loads {
         ramp(&mut out, &mut p, load, 0.5, 0.05);
         ramp(&mut out, &mut p, load, 0.0, 0.05);
     }
