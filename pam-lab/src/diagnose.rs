@@ -120,8 +120,8 @@ impl EffectKind {
             // A rescaled branch that merges within 0.03 of contraction, and
             // a quicker blend that is not limited.
             EffectKind::NonLocalMemory => vec![
-                vec![memory_theta(1.0), merge_theta(0.03)],
-                vec![memory_theta(5.0), merge_theta(0.5)],
+                vec![MEMORY_SHAPE.theta(1.0), MERGE_SPAN.theta(0.03)],
+                vec![MEMORY_SHAPE.theta(5.0), MERGE_SPAN.theta(0.5)],
             ],
             // One start per exponent: factor 1 at rest, 5 per (MPa/s)^n,
             // a 0.2 s filter.
@@ -153,8 +153,8 @@ impl EffectKind {
         match self {
             EffectKind::NonLocalMemory => {
                 e.memory = Some(NonLocalMemory {
-                    shape: memory_shape(t(0)) as f32,
-                    merge_span: merge_span(t(1)) as f32,
+                    shape: MEMORY_SHAPE.value(t(0)) as f32,
+                    merge_span: MERGE_SPAN.value(t(1)) as f32,
                 })
             }
             EffectKind::RateDependence => {
@@ -210,27 +210,39 @@ fn rate_filter_theta(tau: f64) -> f64 {
     logit((tau - 0.02) / 0.98)
 }
 
-/// The memory's `k` from its unbounded coordinate: logarithmic over
-/// `[0.05, 50]` (the blend is symmetric in `ln k`).
-fn memory_shape(theta: f64) -> f64 {
-    (0.05 * 1000f64.powf(sigmoid(theta))).clamp(0.05, 50.0)
+/// A logarithmic range `[lo, lo·ratio]` (clamped to `[lo, hi]`) mapped from
+/// an unbounded coordinate: `lo·ratio^sigmoid(θ)`.
+#[derive(Clone, Copy)]
+struct LogRange {
+    lo: f64,
+    ratio: f64,
+    hi: f64,
 }
 
-fn memory_theta(shape: f64) -> f64 {
-    logit((shape / 0.05).ln() / 1000f64.ln())
+impl LogRange {
+    fn value(self, theta: f64) -> f64 {
+        (self.lo * self.ratio.powf(sigmoid(theta))).clamp(self.lo, self.hi)
+    }
+
+    fn theta(self, value: f64) -> f64 {
+        logit((value / self.lo).ln() / self.ratio.ln())
+    }
 }
 
-/// The memory's merge span from its unbounded coordinate: logarithmic over
-/// `[MIN_MERGE_SPAN, 1]`.
-fn merge_span(theta: f64) -> f64 {
-    let lo = f64::from(MIN_MERGE_SPAN);
-    (lo * (1.0 / lo).powf(sigmoid(theta))).clamp(lo, 1.0)
-}
+/// The memory's `k`: logarithmic over `[0.05, 50]` (the blend is symmetric
+/// in `ln k`).
+const MEMORY_SHAPE: LogRange = LogRange {
+    lo: 0.05,
+    ratio: 1000.0,
+    hi: 50.0,
+};
 
-fn merge_theta(span: f64) -> f64 {
-    let lo = f64::from(MIN_MERGE_SPAN);
-    logit((span / lo).ln() / (1.0 / lo).ln())
-}
+/// The memory's merge span: logarithmic over `[MIN_MERGE_SPAN, 1]`.
+const MERGE_SPAN: LogRange = LogRange {
+    lo: MIN_MERGE_SPAN as f64,
+    ratio: 1.0 / (MIN_MERGE_SPAN as f64),
+    hi: 1.0,
+};
 
 fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
