@@ -14,7 +14,7 @@
 //! load) and the transducer's +3 kPa zero offset left in, as a real logger
 //! would record. 444 s of data, 22 200 samples.
 
-use crate::rig::{Rig, Sample};
+use crate::rig::{IsometricClamp, Rig, Sample};
 use std::io::Write;
 use std::path::Path;
 
@@ -64,6 +64,57 @@ pub fn characterisation_run(seed: u64) -> Vec<Sample> {
         }
     }
     // Re-time from zero (the logger's clock starts with the first sample).
+    let t0 = out.first().map(|s| s.t_s).unwrap_or(0.0);
+    for s in out.iter_mut() {
+        s.t_s -= t0;
+    }
+    out
+}
+
+/// Contractions at which [`isometric_run`] holds the muscle.
+pub const ISOMETRIC_HOLDS: [f64; 4] = [0.10, 0.13, 0.16, 0.19];
+/// Stiffness of the isometric clamp and load cell, N/m.
+pub const CLAMP_STIFFNESS_N_PER_M: f64 = 2e6;
+
+/// An isometric characterisation run on the reference rig: the muscle is
+/// clamped at each of [`ISOMETRIC_HOLDS`] in turn (through a stiff load
+/// cell, [`IsometricClamp`]), and at each the pressure runs the same
+/// protocol as [`characterisation_run`] (settle, two full cycles to 0.5 MPa,
+/// the partial cycles), logged at 50 Hz. The load column is the force the
+/// muscle pulls with (0 N while it is slack, up to about 1.1 kN), as a
+/// real isometric test records it. 296 s, 14 800 samples.
+///
+/// ```
+/// let run = host_sim::isometric_run(1);
+/// assert_eq!(run.len(), 14_800);
+/// let max_load = run.iter().map(|s| s.load_n).fold(0.0, f64::max);
+/// assert!(max_load > 500.0 && max_load < 2000.0, "{max_load}");
+/// ```
+pub fn isometric_run(seed: u64) -> Vec<Sample> {
+    let dt = 1.0 / LOG_RATE_HZ;
+    let mut rig = Rig::reference(0.0, seed);
+    let mut out = Vec::new();
+    for &hold in ISOMETRIC_HOLDS.iter() {
+        rig.set_clamp(Some(IsometricClamp {
+            hold_contraction: hold,
+            stiffness_n_per_m: CLAMP_STIFFNESS_N_PER_M,
+        }));
+        let mut p_ref = 0.0;
+        let settle = (SETTLE_S / dt).round() as usize;
+        for _ in 0..settle {
+            out.push(rig.measure());
+            rig.advance_regulated(p_ref, dt);
+        }
+        for w in PRESSURE_KNOTS_MPA.windows(2) {
+            let (from, to) = (w[0], w[1]);
+            let n = ((to - from).abs() / RAMP_MPA_PER_S / dt).round() as usize;
+            for k in 0..n {
+                out.push(rig.measure());
+                p_ref = from + (to - from) * (k + 1) as f64 / n as f64;
+                rig.advance_regulated(p_ref, dt);
+            }
+        }
+    }
     let t0 = out.first().map(|s| s.t_s).unwrap_or(0.0);
     for s in out.iter_mut() {
         s.t_s -= t0;

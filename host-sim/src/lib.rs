@@ -17,7 +17,7 @@ pub mod report;
 pub mod rig;
 pub mod sensors;
 
-pub use characterisation::{characterisation_run, write_samples_csv};
+pub use characterisation::{characterisation_run, isometric_run, write_samples_csv};
 pub use rig::{Rig, Sample, TrueState};
 pub mod bench;
 pub mod faults;

@@ -240,6 +240,14 @@ impl Muscle {
         self.params.volume_m3(self.contraction)
     }
 
+    /// Mount the muscle at `contraction`, at rest (an isometric fixture is
+    /// set to its length before the test).
+    pub fn mount_at(&mut self, contraction: f64) {
+        self.contraction = contraction;
+        self.velocity_per_s = 0.0;
+        self.slip = [0.0; SLIP_ELEMENTS];
+    }
+
     /// Advance by `dt_s` at gauge `pressure_mpa` under `load_n` (semi-implicit
     /// Euler; keep `dt_s` ≤ 0.5 ms for the stiff stretch spring).
     pub fn step(&mut self, pressure_mpa: f64, load_n: f64, dt_s: f64) -> MuscleForces {

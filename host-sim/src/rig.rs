@@ -51,6 +51,31 @@ pub struct Rig {
     pub opening: ValveOpening,
     load_n: f64,
     t_s: f64,
+    /// The isometric clamp, when the muscle is held rather than loaded.
+    clamp: Option<IsometricClamp>,
+}
+
+/// An isometric test's clamp: both ends of the muscle are held by a fixture
+/// with a stiff load cell, so the muscle pulls on a spring instead of
+/// lifting a weight. A real fixture and load cell are stiff, not rigid: the
+/// contraction moves by `force/(stiffness·rest length)` (about 0.0013 at
+/// 800 N), which also lets the braid's friction act as it does on a real
+/// rig. The fixture holds the length both ways; a slack muscle buckles
+/// rather than pushes, so the logged force is never below 0 N.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IsometricClamp {
+    /// Contraction at which the fixture holds the muscle.
+    pub hold_contraction: f64,
+    /// Stiffness of clamp and load cell, N/m.
+    pub stiffness_n_per_m: f64,
+}
+
+impl IsometricClamp {
+    /// The fixture's force on the muscle at `contraction`, N (positive:
+    /// tension, holding the muscle back; negative: holding it out).
+    pub fn force_n(&self, contraction: f64, rest_length_m: f64) -> f64 {
+        self.stiffness_n_per_m * (contraction - self.hold_contraction) * rest_length_m
+    }
 }
 
 impl Rig {
@@ -66,6 +91,17 @@ impl Rig {
             opening: ValveOpening::default(),
             load_n,
             t_s: 0.0,
+            clamp: None,
+        }
+    }
+
+    /// Hold the muscle in `clamp` (an isometric test); `None` hangs the
+    /// load of [`Rig::set_load_n`] again. While clamped the load is the
+    /// clamp's force.
+    pub fn set_clamp(&mut self, clamp: Option<IsometricClamp>) {
+        self.clamp = clamp;
+        if let Some(c) = clamp {
+            self.muscle.mount_at(c.hold_contraction);
         }
     }
 
@@ -115,6 +151,12 @@ impl Rig {
     }
 
     fn plant_step(&mut self, dt: f64) {
+        if let Some(c) = self.clamp {
+            self.load_n = c.force_n(
+                self.muscle.contraction(),
+                self.muscle.params().rest_length_m,
+            );
+        }
         let p = self.chamber.pressure_mpa();
         self.muscle.step(p, self.load_n, dt);
         let v = self.muscle.volume_m3();
@@ -142,9 +184,15 @@ impl Rig {
     /// One measured sample, as a data logger records it.
     pub fn measure(&mut self) -> Sample {
         let s = self.true_state();
+        let load_n = self.load_cell.read_n(s.load_n);
         Sample {
             t_s: s.t_s,
-            load_n: self.load_cell.read_n(s.load_n),
+            // Clamped, a slack muscle reads 0 N, never a push.
+            load_n: if self.clamp.is_some() {
+                load_n.max(0.0)
+            } else {
+                load_n
+            },
             pressure_mpa: self.pressure_sensor.read_mpa(s.pressure_mpa),
             contraction: self.contraction_sensor.read(s.contraction),
         }

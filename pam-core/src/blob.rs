@@ -13,8 +13,8 @@
 //! [`decode`] checks magic, version, length and CRC, then validates the
 //! parameters with [`Coeffs::new`]: a blob that decodes is a model that runs.
 
+use crate::coeffs::Coeffs;
 use crate::error::Error;
-use crate::load_family::Coeffs;
 use crate::params::{CriticalPoints, Params, Point};
 
 /// Magic bytes at the start of a blob.

@@ -129,32 +129,6 @@ impl FactorCubic {
             d0: -self.c * self.root,
         }
     }
-
-    /// Check the two shape conditions of the paper at `load_n`: a single real
-    /// root (`a > 0` and `b² − 4ac < 0`, so the quadratic factor has complex
-    /// roots) and a strictly increasing curve on `[R, x_max]`.
-    pub fn check_shape(&self, x_max: f64, load_n: f32) -> Result<(), Error> {
-        if !(self.a > 0.0) || !(self.b * self.b - 4.0 * self.a * self.c < 0.0) {
-            return Err(Error::NotOneRealRoot { load_n });
-        }
-        // f' is a quadratic in x: its minimum on [R, x_max] is at an end or at
-        // the inflection point (b + aR)/(3a), eq. for x_inf.
-        let x_inf = (self.b + self.a * self.root) / (3.0 * self.a);
-        let mut x_low = self.root;
-        for x in [x_max, x_inf] {
-            if x >= self.root && x <= x_max && self.slope(x) < self.slope(x_low) {
-                x_low = x;
-            }
-        }
-        if self.slope(x_low) > 0.0 {
-            Ok(())
-        } else {
-            Err(Error::NotMonotone {
-                load_n,
-                contraction: x_low as f32,
-            })
-        }
-    }
 }
 
 fn cube(x: f64) -> f64 {
@@ -166,6 +140,16 @@ mod tests {
     use super::*;
     use crate::params::Params;
     use crate::testing::isclose;
+
+    /// The shape check of the load family at the minimum load.
+    fn shape_at_min_load(points: CriticalPoints) -> Result<(), Error> {
+        let params = Params {
+            points,
+            ..Params::DEFAULT
+        };
+        let fam = crate::LoadFamily::from_params(&params)?;
+        fam.at_load(fam.min_load_n).check_shape(0.0)
+    }
 
     #[test]
     fn general_cubic_passes_through_the_four_points() {
@@ -258,9 +242,7 @@ mod tests {
     #[test]
     fn default_has_one_real_root_and_is_monotone() {
         let p = Params::DEFAULT.points;
-        let g = GeneralCubic::through_points(&p).unwrap();
-        let f = g.factor(f64::from(p.root_contraction));
-        f.check_shape(f64::from(p.max_contraction), 100.0).unwrap();
+        shape_at_min_load(p).unwrap();
     }
 
     #[test]
@@ -275,9 +257,7 @@ mod tests {
             contraction: 0.12,
             pressure_mpa: 0.02,
         };
-        let g = GeneralCubic::through_points(&p).unwrap();
-        let f = g.factor(f64::from(p.root_contraction));
-        assert!(f.check_shape(f64::from(p.max_contraction), 100.0).is_err());
+        assert!(shape_at_min_load(p).is_err());
     }
 
     #[test]
@@ -288,10 +268,8 @@ mod tests {
             contraction: 0.07,
             pressure_mpa: 0.35,
         };
-        let g = GeneralCubic::through_points(&p).unwrap();
-        let f = g.factor(f64::from(p.root_contraction));
         assert!(matches!(
-            f.check_shape(f64::from(p.max_contraction), 100.0),
+            shape_at_min_load(p),
             Err(Error::NotMonotone { .. }) | Err(Error::NotOneRealRoot { .. })
         ));
     }

@@ -13,12 +13,16 @@
 //!   minimum load from four critical points (eqs. 7–14, [`constraint`]);
 //! * a **load family**: the first real root `R` and the maximum contraction
 //!   `Rx` regress and the quadratic constant `c` grows linearly with load
-//!   (eqs. 16–20, [`load_family`]);
-//! * a **hysteresis offset**: half an ellipse over `[R, Rx]` added on the
-//!   contraction branch and subtracted on the expansion branch (eqs. 22–26,
-//!   [`hysteresis`]);
+//!   (eqs. 15–21, [`load_family`], in `f64`: construction and host tools);
+//!   [`coeffs`] validates a parameter set once;
+//! * a **hysteresis offset**: half an ellipse over `[R, Rx]` (eqs. 22–24,
+//!   [`ellipse`]) added on the contraction branch and subtracted on the
+//!   expansion branch: the per-load model with its forward and inverse
+//!   evaluation (eqs. 25–26, [`load_model`], in `f32`: the per-sample path);
 //! * a **mode tracker** that follows direction and load changes and switches
-//!   the active model ([`tracker`]).
+//!   the active model ([`tracker`]);
+//! * the **effects** the paper leaves for future work ([`effects`]) and a
+//!   [`simulator`] that runs the model with them.
 //!
 //! Units are in names: `pressure_mpa` in MPa, `load_n` in newtons,
 //! `contraction` as a fraction of the muscle's rest length.
@@ -42,22 +46,28 @@
 
 pub mod blob;
 pub mod branch;
+pub mod coeffs;
 pub mod constraint;
 pub mod effects;
+pub mod ellipse;
 pub mod error;
-pub mod hysteresis;
 pub mod load_family;
+pub mod load_model;
 mod math;
 pub mod params;
+pub mod simulator;
 pub mod tracker;
 
 pub use branch::Branch;
+pub use coeffs::Coeffs;
 pub use constraint::{FactorCubic, GeneralCubic};
-pub use effects::{Effects, Simulator};
+pub use effects::Effects;
+pub use ellipse::Ellipse;
 pub use error::Error;
-pub use hysteresis::LoadModel;
-pub use load_family::Coeffs;
+pub use load_family::{LoadCubic, LoadFamily, ShapeMargins};
+pub use load_model::LoadModel;
 pub use params::{CriticalPoints, Params, Point};
+pub use simulator::Simulator;
 pub use tracker::{LoadSwitch, Tracker, TrackerConfig, Update};
 
 #[cfg(test)]

@@ -58,3 +58,24 @@ pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
         lo
     }
 }
+
+/// `f64` square root for the host-side model path (construction, fitting):
+/// `libm::sqrt` so that the same code builds without `std`.
+#[inline]
+pub fn sqrt_f64(x: f64) -> f64 {
+    libm::sqrt(x)
+}
+
+/// `f64` [`clamp`]: `x` limited to `[lo, hi]`, NaN maps to `lo`, never panics.
+#[inline]
+pub fn clamp_f64(x: f64, lo: f64, hi: f64) -> f64 {
+    if x >= lo {
+        if x <= hi {
+            x
+        } else {
+            hi
+        }
+    } else {
+        lo
+    }
+}

@@ -109,21 +109,21 @@ impl Params {
         max_load_n: 600.0,
         load_step_n: 100.0,
         points: CriticalPoints {
-            root_contraction: 0.015123766,
-            max_contraction: 0.2298277,
+            root_contraction: 0.0151208835,
+            max_contraction: 0.22982764,
             max_pressure_mpa: 0.50096667,
             tangency: Point {
-                contraction: 0.068185344,
-                pressure_mpa: 0.19352585,
+                contraction: 0.06818282,
+                pressure_mpa: 0.19351701,
             },
             inflection: Point {
-                contraction: 0.12124693,
-                pressure_mpa: 0.24306731,
+                contraction: 0.12124475,
+                pressure_mpa: 0.24306354,
             },
         },
-        root_regression_per_step: 0.005341756,
-        max_regression_per_step: 0.016384471,
-        c_growth_per_step: 0.15461592,
-        ellipse_height_mpa: 0.03023332,
+        root_regression_per_step: 0.005341029,
+        max_regression_per_step: 0.016381713,
+        c_growth_per_step: 0.15472324,
+        ellipse_height_mpa: 0.030232545,
     };
 }

@@ -19,9 +19,9 @@
 //! Non-finite samples are ignored (and reported), never stored.
 
 use crate::branch::Branch;
+use crate::coeffs::Coeffs;
 use crate::error::Error;
-use crate::hysteresis::LoadModel;
-use crate::load_family::Coeffs;
+use crate::load_model::LoadModel;
 
 /// Tuning of the tracker.
 #[derive(Clone, Copy, Debug, PartialEq)]

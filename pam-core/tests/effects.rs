@@ -4,9 +4,9 @@
 use pam_core::effects::MAX_OFFSET_SCALE;
 use pam_core::effects::{
     branch_contraction, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
-    RateState, Reversal, ReversalStack, Simulator,
+    RateState, Reversal, ReversalStack,
 };
-use pam_core::{Branch, Coeffs, Tracker, TrackerConfig};
+use pam_core::{Branch, Coeffs, Simulator, Tracker, TrackerConfig};
 use proptest::prelude::*;
 
 mod common;

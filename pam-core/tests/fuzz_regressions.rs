@@ -85,7 +85,7 @@ fn a_subnormal_squared_ellipse_height_is_refused() {
         m.offset_mpa(0.5 * (m.root_contraction() + m.max_contraction())),
         0.0
     );
-    p.ellipse_height_mpa = pam_core::load_family::MIN_ELLIPSE_HEIGHT_MPA;
+    p.ellipse_height_mpa = pam_core::coeffs::MIN_ELLIPSE_HEIGHT_MPA;
     let m = Coeffs::new(p).unwrap().load_model_clamped(200.0);
     let peak = m.offset_mpa(0.5 * (m.root_contraction() + m.max_contraction()));
     assert!(

@@ -1,7 +1,7 @@
 //! Property tests over the whole f32 domain (NaN, ±inf, subnormals and
 //! out-of-range values included) for every public evaluation function.
 
-use pam_core::hysteresis::INVERSE_TOLERANCE_MPA;
+use pam_core::load_model::INVERSE_TOLERANCE_MPA;
 use pam_core::{blob, Branch, Coeffs, Params, Tracker, TrackerConfig};
 use proptest::prelude::*;
 

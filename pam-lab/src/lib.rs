@@ -27,6 +27,7 @@ pub mod data;
 pub mod diagnose;
 pub mod diagnose_plot;
 pub mod fit;
+pub mod lsq;
 pub mod model_file;
 pub mod plot;
 pub mod simulate;

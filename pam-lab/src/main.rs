@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use pam_core::TrackerConfig;
-use pam_lab::fit::{FitConfig, Holdout, Progress};
+use pam_lab::fit::{FitConfig, Holdout, Progress, TestKind};
 use pam_lab::model_file::{FitSummary, ModelFile};
 use pam_lab::split::SplitConfig;
 use pam_lab::{atomic, data, fit, model_file, plot, simulate};
@@ -54,6 +54,9 @@ enum Command {
         /// Fewest training samples per branch in a load bin.
         #[arg(long, default_value_t = 50)]
         min_samples: usize,
+        /// Kind of test: `isotonic`, `isometric` or `mixed` (default: detected from the record).
+        #[arg(long, value_name = "KIND")]
+        test: Option<TestKind>,
         /// Do not draw fit.png.
         #[arg(long)]
         no_plot: bool,
@@ -108,6 +111,7 @@ fn main() -> ExitCode {
             deadband,
             load_bin,
             min_samples,
+            test,
             no_plot,
             quiet,
         } => {
@@ -121,6 +125,7 @@ fn main() -> ExitCode {
                 },
                 load_bin_n: load_bin,
                 min_samples_per_group: min_samples,
+                test,
                 ..FitConfig::default()
             };
             run_fit(&data, &out_dir, &cfg, !no_plot, !quiet)
@@ -159,6 +164,8 @@ fn run_fit(
     draw: bool,
     verbose: bool,
 ) -> Result<()> {
+    // Every setting is checked before the record is read.
+    cfg.validate()?;
     let start = Instant::now();
     let tty = std::io::stderr().is_terminal();
     let say = |msg: &str| {
@@ -276,6 +283,17 @@ fn run_fit(
     )?;
     writeln!(
         out,
+        "  test: {} ({})",
+        report.test_kind,
+        if cfg.test.is_some() {
+            "given"
+        } else {
+            "detected"
+        }
+    )?;
+    writeln!(out, "  shape: {}", report.shape.statement())?;
+    writeln!(
+        out,
         "{} errors (model − measured; pressure by the forward model, contraction by the inverse):",
         if any_heldout {
             "held-out"
@@ -284,6 +302,14 @@ fn run_fit(
         }
     )?;
     write!(out, "{}", report.test.to_text())?;
+    writeln!(
+        out,
+        "  held-out pressure error RMS {:.5} MPa, contraction error RMS {:.6} ({} error is primary for an {} test)",
+        report.test.total.pressure_rms_mpa,
+        report.test.total.contraction_rms,
+        if report.test_kind == fit::TestKind::Isometric { "the pressure" } else { "the contraction" },
+        report.test_kind
+    )?;
     for w in &written {
         writeln!(out, "wrote {}", w.display())?;
     }
@@ -307,12 +333,17 @@ fn run_simulate(
     if let Some(p) = plot_path {
         plot::simulate_plot(p, &record.source, &sim)?;
     }
-    let (rms, max) = simulate::summary(&sim);
+    let sum = simulate::summary(&sim);
     println!(
-        "simulated {} samples of {} with {}: contraction error RMS {rms:.5}, max {max:.5}",
+        "simulated {} samples of {} with {}: contraction error RMS {:.5}, max {:.5}; \
+         pressure error RMS {:.5} MPa, max {:.5} MPa",
         sim.len(),
         record.source,
-        model.display()
+        model.display(),
+        sum.contraction_rms,
+        sum.contraction_max,
+        sum.pressure_rms_mpa,
+        sum.pressure_max_mpa
     );
     println!("wrote {}", out.display());
     if let Some(p) = plot_path {

@@ -177,7 +177,7 @@ mod tests {
     #[test]
     fn rust_source_reads_back_exactly() {
         let src = rust_source(&Params::DEFAULT, "test");
-        assert!(src.contains("root_contraction: 0.015123766,"), "{src}");
+        assert!(src.contains("root_contraction: 0.0151208835,"), "{src}");
         assert!(src.contains("max_pressure_mpa: 0.50096667,"), "{src}");
         assert!(src.contains("min_load_n: 100.0,"), "{src}");
     }

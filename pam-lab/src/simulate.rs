@@ -4,6 +4,10 @@
 //! the measured load; the predicted contraction is the active load model's
 //! inverse on the tracker's branch at the measured pressure. A reversal inside
 //! the loop jumps to the other branch, as the paper's model does.
+//!
+//! The pressure error is the feedforward's quantity (and the natural one of
+//! an isometric test): the forward model at the measured contraction on the
+//! tracker's branch and active load, minus the measured pressure.
 
 use pam_core::{Branch, Coeffs, Tracker, TrackerConfig};
 
@@ -22,6 +26,8 @@ pub struct SimSample {
     pub measured_contraction: f64,
     /// Model contraction.
     pub predicted_contraction: f64,
+    /// Model pressure at the measured contraction, MPa.
+    pub predicted_pressure_mpa: f64,
     /// The tracker's branch.
     pub branch: Branch,
     /// The tracker's active load, N.
@@ -33,6 +39,24 @@ impl SimSample {
     pub fn error(&self) -> f64 {
         self.predicted_contraction - self.measured_contraction
     }
+
+    /// Predicted − measured pressure, MPa.
+    pub fn pressure_error_mpa(&self) -> f64 {
+        self.predicted_pressure_mpa - self.pressure_mpa
+    }
+}
+
+/// Error summary of a simulation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Summary {
+    /// RMS contraction error.
+    pub contraction_rms: f64,
+    /// Largest |contraction error|.
+    pub contraction_max: f64,
+    /// RMS pressure error, MPa.
+    pub pressure_rms_mpa: f64,
+    /// Largest |pressure error|, MPa.
+    pub pressure_max_mpa: f64,
 }
 
 /// Simulate `samples` with `coeffs`; the tracker starts on the contraction
@@ -46,15 +70,16 @@ pub fn simulate(coeffs: &Coeffs, config: TrackerConfig, samples: &[Sample]) -> V
         .iter()
         .map(|s| {
             tracker.update(coeffs, s.pressure_mpa as f32, s.load_n as f32);
-            let x = tracker
-                .model()
-                .contraction(s.pressure_mpa as f32, tracker.branch());
+            let model = tracker.model();
+            let x = model.contraction(s.pressure_mpa as f32, tracker.branch());
+            let p = model.pressure_mpa(s.contraction as f32, tracker.branch());
             SimSample {
                 t_s: s.t_s,
                 load_n: s.load_n,
                 pressure_mpa: s.pressure_mpa,
                 measured_contraction: s.contraction,
                 predicted_contraction: f64::from(x),
+                predicted_pressure_mpa: f64::from(p),
                 branch: tracker.branch(),
                 active_load_n: f64::from(tracker.load_n()),
             }
@@ -62,12 +87,18 @@ pub fn simulate(coeffs: &Coeffs, config: TrackerConfig, samples: &[Sample]) -> V
         .collect()
 }
 
-/// RMS and maximum |error| of a simulation.
-pub fn summary(sim: &[SimSample]) -> (f64, f64) {
+/// RMS and maximum |error| of a simulation, contraction and pressure.
+pub fn summary(sim: &[SimSample]) -> Summary {
     let n = sim.len().max(1) as f64;
-    let rms = (sim.iter().map(|s| s.error().powi(2)).sum::<f64>() / n).sqrt();
-    let max = sim.iter().map(|s| s.error().abs()).fold(0.0, f64::max);
-    (rms, max)
+    let rms =
+        |f: &dyn Fn(&SimSample) -> f64| (sim.iter().map(|s| f(s).powi(2)).sum::<f64>() / n).sqrt();
+    let max = |f: &dyn Fn(&SimSample) -> f64| sim.iter().map(|s| f(s).abs()).fold(0.0, f64::max);
+    Summary {
+        contraction_rms: rms(&|s| s.error()),
+        contraction_max: max(&|s| s.error()),
+        pressure_rms_mpa: rms(&|s| s.pressure_error_mpa()),
+        pressure_max_mpa: max(&|s| s.pressure_error_mpa()),
+    }
 }
 
 /// Write a simulation as CSV: the input columns, the prediction, the error
@@ -75,18 +106,20 @@ pub fn summary(sim: &[SimSample]) -> (f64, f64) {
 pub fn write_csv(w: &mut dyn std::io::Write, sim: &[SimSample]) -> std::io::Result<()> {
     writeln!(
         w,
-        "t_s,load_n,pressure_mpa,measured_contraction,predicted_contraction,error_contraction,branch,active_load_n"
+        "t_s,load_n,pressure_mpa,measured_contraction,predicted_contraction,error_contraction,predicted_pressure_mpa,error_pressure_mpa,branch,active_load_n"
     )?;
     for s in sim {
         writeln!(
             w,
-            "{},{},{},{},{:.6},{:.6},{},{}",
+            "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{},{}",
             s.t_s,
             s.load_n,
             s.pressure_mpa,
             s.measured_contraction,
             s.predicted_contraction,
             s.error(),
+            s.predicted_pressure_mpa,
+            s.pressure_error_mpa(),
             match s.branch {
                 Branch::Contraction => "contraction",
                 Branch::Expansion => "expansion",
@@ -117,6 +150,12 @@ mod tests {
         let sim = simulate(&coeffs, TrackerConfig::DEFAULT_PRESSURE, &rec.samples);
         assert_eq!(sim.len(), rec.len());
         let bad = sim.iter().filter(|s| s.error().abs() > 1e-4).count();
+        // The forward model has no deadband issue away from the reversals.
+        let bad_p = sim
+            .iter()
+            .filter(|s| s.pressure_error_mpa().abs() > 1e-4)
+            .count();
+        assert!(bad_p <= 4 * 2 * 4, "{bad_p}");
         // Each reversal at the ends costs at most deadband/step = 3 samples.
         assert!(bad <= 4 * 2 * 4, "{bad}");
         assert_eq!(sim[1990].active_load_n, 300.0);

@@ -116,7 +116,7 @@ fn too_few_samples_per_load_and_branch_is_refused() {
     let (ok, _, stderr) = pam_lab(&["fit", data.to_str().unwrap(), "-o", out.to_str().unwrap()]);
     assert!(!ok);
     assert!(
-        stderr.contains("one_load.csv: too few samples to identify the model"),
+        stderr.contains("one_load.csv: column `load_n`: too few samples to identify the model"),
         "{stderr}"
     );
     assert!(!out.exists());

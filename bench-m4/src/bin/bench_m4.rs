@@ -23,7 +23,8 @@ use cortex_m_semihosting::{debug, hprintln};
 use firmware::controller::{Controller, ControllerConfig, Io};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
 use firmware::plant::{SimBus, SimContraction, SimLoad, SimPressure, SimPwm};
-use pam_core::effects::{Effects, NonLocalMemory, Simulator};
+use pam_core::effects::{Effects, NonLocalMemory};
+use pam_core::Simulator;
 use pam_core::{Branch, Coeffs, LoadModel, Tracker, TrackerConfig};
 
 static STARTS: AtomicU32 = AtomicU32::new(0);

@@ -41,7 +41,8 @@ use std::path::PathBuf;
 
 use bench_m4::{PiCoeffs, PiTable, PrandtlIshlinskii, Preisach, PreisachCoeffs, PreisachTable};
 use nalgebra::{DMatrix, DVector};
-use pam_core::effects::{Effects, NonLocalMemory, Simulator};
+use pam_core::effects::{Effects, NonLocalMemory};
+use pam_core::Simulator;
 use pam_core::{Coeffs, Params, TrackerConfig};
 use pam_lab::data::{Record, Sample};
 use pam_lab::fit::{heldout_mask, FitConfig, Holdout};

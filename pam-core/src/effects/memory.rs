@@ -41,7 +41,7 @@
 //! Cost: the branch inverse `B(p)` (the fast table inverse when the offset
 //! is not scaled) once per sample; `B(p_r)`, `B(p_t)` are cached per minor
 //! loop (recomputed after a push, a wipe-out, a change of branch, load
-//! model or offset scale). The [`Simulator`](super::Simulator)'s per-sample
+//! model or offset scale). The [`Simulator`](crate::Simulator)'s per-sample
 //! path on a cached minor loop is one comparison for the wiping-out test, one
 //! for the offset scale, the blend (one division) and the clamp to the
 //! stroke: about 40 instructions on a Cortex-M4F besides the branch inverse
@@ -52,7 +52,7 @@
 
 use crate::branch::Branch;
 use crate::error::Error;
-use crate::hysteresis::LoadModel;
+use crate::load_model::LoadModel;
 use crate::math::clamp;
 
 use super::branch_contraction;
@@ -125,7 +125,7 @@ impl NonLocalMemory {
     }
 
     /// `k` clamped to `[0.05, 50]` and `1 − k`, the per-sample constants of
-    /// [`Self::blend`] (the [`Simulator`](super::Simulator) computes them once).
+    /// [`Self::blend`] (the [`Simulator`](crate::Simulator) computes them once).
     #[inline]
     pub(crate) fn blend_coeffs(&self) -> Blend {
         let k = clamp(self.shape, 0.05, 50.0);
@@ -242,7 +242,7 @@ impl<const N: usize> ReversalStack<N> {
         self.segment = None;
     }
 
-    /// Forget the cached minor loop (the [`Simulator`](super::Simulator)
+    /// Forget the cached minor loop (the [`Simulator`](crate::Simulator)
     /// calls this where the branch changes; its model and offset scale change
     /// only with a load switch, which clears the stack, or are compared).
     #[inline]
@@ -372,7 +372,7 @@ impl<const N: usize> ReversalStack<N> {
         seg.eval(blend, model, x_branch)
     }
 
-    /// [`Self::contraction`] for the [`Simulator`](super::Simulator), given
+    /// [`Self::contraction`] for the [`Simulator`](crate::Simulator), given
     /// `x_branch = branch_contraction(model, pressure_mpa, branch,
     /// offset_scale)`: `Some(x)` on a minor loop (then `x` is
     /// [`Self::contraction`]'s result, within the stroke), `None` with no

@@ -1,6 +1,7 @@
-//! The hysteresis model at one load, eqs. (22)–(26): the constraint model plus
-//! (contraction branch) or minus (expansion branch) half an ellipse over the
-//! stroke `[R_i, Rx_i]`, with forward and inverse evaluation.
+//! The hysteresis model at one load, eqs. (25)–(26), on the per-sample `f32`
+//! path: the constraint model (eq. 21) plus (contraction branch) or minus
+//! (expansion branch) the ellipse offset of eqs. (22)–(24)
+//! ([`crate::ellipse`]), with forward and inverse evaluation.
 //!
 //! # Clamps (all documented, none fails)
 //! * Contraction outside `[R_i, Rx_i]` is clamped to it; NaN maps to `R_i`.
@@ -30,7 +31,7 @@
 //! interval: fixed work, two divisions and one square root.
 
 use crate::branch::Branch;
-use crate::load_family::Coeffs;
+use crate::load_family::LoadCubic;
 use crate::math::{clamp, sqrt};
 
 /// Intervals of the inverse table per branch, uniform in pressure over
@@ -49,7 +50,7 @@ pub const INVERSE_TOLERANCE_MPA: f32 = 2e-4;
 
 /// The hysteresis model at one load, ready for per-sample evaluation.
 ///
-/// Built by [`Coeffs::load_model`]; holds `f32` coefficients and the inverse
+/// Built by [`crate::Coeffs::load_model`]; holds `f32` coefficients and the inverse
 /// tables (about 560 bytes), no references.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadModel {
@@ -79,31 +80,27 @@ pub struct LoadModel {
 }
 
 impl LoadModel {
-    pub(crate) fn new(coeffs: &Coeffs, load_n: f32) -> LoadModel {
-        let at = coeffs.load_cubic(load_n);
-        let params = coeffs.params();
+    /// The `f32` model of `at` with its inverse tables (the load family's
+    /// `f64` construction rounded once).
+    pub(crate) fn new(at: &LoadCubic) -> LoadModel {
         let root = at.cubic.root as f32;
         let max_contraction = at.max_contraction as f32;
-        // eq. (24): ae_i = (Rx_i − R_i)/2, and the centre h_i = R_i + ae_i. The
-        // paper prints h_i = R_1 + ae_i, which centres every load's ellipse on
-        // the minimum load's root; the ellipse must span [R_i, Rx_i] so that
-        // both branches meet the constraint model at the stroke ends.
-        let half_width = 0.5 * (at.max_contraction - at.cubic.root);
+        let ellipse = at.ellipse();
+        let height_mpa = at.ellipse_height_mpa as f32;
+        let max_pressure_mpa = at.max_pressure_mpa as f32;
         let mut model = LoadModel {
-            load_n: at.load_n,
+            load_n: at.load_n as f32,
             root,
             max_contraction,
             a: at.cubic.a as f32,
             b: at.cubic.b as f32,
             c: at.cubic.c as f32,
-            height_mpa: params.ellipse_height_mpa,
-            centre: (at.cubic.root + half_width) as f32,
-            ellipse_k2: {
-                let k = f64::from(params.ellipse_height_mpa) / half_width;
-                (k * k) as f32
-            },
-            max_pressure_mpa: params.points.max_pressure_mpa,
-            intervals_per_mpa: INVERSE_INTERVALS as f32 / params.points.max_pressure_mpa,
+            height_mpa,
+            // eq. (24), centre corrected to R_i + ae_i (see `Ellipse::centre`).
+            centre: ellipse.centre() as f32,
+            ellipse_k2: ellipse.k2() as f32,
+            max_pressure_mpa,
+            intervals_per_mpa: INVERSE_INTERVALS as f32 / max_pressure_mpa,
             inverse_table: [[0.0; INVERSE_INTERVALS + 1]; 2],
         };
         model.inverse_table = [
@@ -334,6 +331,7 @@ impl LoadModel {
 mod tests {
     use super::*;
     use crate::params::Params;
+    use crate::Coeffs;
 
     fn model(load_n: f32) -> LoadModel {
         Coeffs::new(Params::DEFAULT)
