@@ -419,7 +419,7 @@ impl Monitor {
     /// Every check of every reading, in order (the path of a bad sample).
     #[cold]
     #[inline(never)]
-    fn check_full(
+    pub(super) fn check_full(
         &mut self,
         readings: &[Result<f32, SensorErrorKind>; 3],
         desired_contraction: f32,

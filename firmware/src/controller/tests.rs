@@ -657,3 +657,328 @@ fn arbitrary_samples_with(ff: Feedforward) {
         }
     }
 }
+
+/// [`synthetic`] with the model check on (default bound and time).
+fn model_only() -> ControllerConfig {
+    let mut cfg = synthetic();
+    cfg.safety.implausible_periods = ControllerConfig::DEFAULT.safety.implausible_periods;
+    cfg
+}
+
+#[test]
+fn fast_and_full_checks_agree_on_every_sample() {
+    // One rule table behind both paths: for every combination of readings
+    // the fast path's answer is the full check's.
+    let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+    let mut s = ControllerConfig::DEFAULT.safety;
+    s.stuck_samples = 0;
+    let values = [
+        Err(SensorErrorKind::Timeout),
+        Ok(f32::NAN),
+        Ok(f32::NEG_INFINITY),
+        Ok(-1.0),
+        Ok(-0.04),
+        Ok(0.0),
+        Ok(0.1),
+        Ok(0.39),
+        Ok(0.52),
+        Ok(0.56),
+        Ok(0.79),
+        Ok(0.81),
+        Ok(90.0),
+        Ok(200.0),
+        Ok(620.0),
+        Ok(630.0),
+        Ok(f32::MAX),
+    ];
+    for &p in &values {
+        for &x in &values {
+            for &l in &values {
+                for sp in [0.1, f32::NAN] {
+                    let sample = Sample {
+                        pressure_mpa: p,
+                        contraction: x,
+                        load_n: l,
+                    };
+                    let mut fast = monitor::Monitor::new(&s, &coeffs, 1e-3);
+                    let mut full = fast;
+                    assert_eq!(
+                        fast.check(&sample, sp),
+                        full.check_full(&sample.readings(), sp),
+                        "{sample:?} {sp}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn pressure_above_pmax_plus_the_margin_is_over_pressure() {
+    let s = ControllerConfig::DEFAULT.safety;
+    let limit = Params::DEFAULT.points.max_pressure_mpa + s.overpressure_margin_mpa;
+    let mut c = no_stuck_check();
+    assert_eq!(c.update(&good(limit - 0.005, 0.2, 200.0), 0.2).fault, None);
+    let st = c.update(&good(limit + 0.005, 0.2, 200.0), 0.2);
+    assert_eq!(st.new_fault, Some(Fault::OverPressure));
+    assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+    // Above the plausible range it is an implausible reading instead.
+    let st = c.update(&good(s.pressure_max_mpa + 0.1, 0.2, 200.0), 0.2);
+    assert_eq!(st.fault, Some(Fault::OutOfRange(SensorId::Pressure)));
+}
+
+/// Readings at `p` with the contraction `dx` beyond the expansion branch
+/// (or inside the band when `dx` is negative enough), dithered by a count.
+fn beside_band(c: &Controller, k: u32, p: f32, dx: f32) -> Sample {
+    let m = c.tracker().model();
+    let x = m.contraction(p, Branch::Expansion) + dx;
+    let d = (k % 2) as f32 * 1e-4;
+    good(p, x + d, 200.0)
+}
+
+#[test]
+fn the_model_check_trips_after_its_time_outside_the_band() {
+    let cfg = model_only();
+    let s = cfg.safety;
+    let n = u32::from(s.implausible_periods);
+    let mut c = controller_with(cfg);
+    let p = 0.3;
+    // Inside the band, and up to the bound beyond it: never.
+    for k in 0..(3 * n) {
+        let smp = beside_band(&c, k, p, s.implausible_contraction - 0.002);
+        let st = c.update(&smp, 0.12);
+        assert_eq!(st.fault, None, "{k}");
+        assert!(st.model_excess <= s.implausible_contraction);
+    }
+    // Beyond it: the fault on the n-th period in a row, valves safe.
+    for k in 1..n {
+        let smp = beside_band(&c, k, p, s.implausible_contraction + 0.01);
+        assert_eq!(c.update(&smp, 0.12).fault, None, "{k}");
+    }
+    let st = c.update(&beside_band(&c, 0, p, 0.05), 0.12);
+    assert_eq!(st.new_fault, Some(Fault::Implausible(Check::Model)));
+    assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+    // Below the contraction branch too.
+    let mut c = controller_with(cfg);
+    let m = c.tracker().model().clone();
+    let below = m.contraction(p, Branch::Contraction) - s.implausible_contraction - 0.01;
+    let tripped = (0..n).map(|k| c.update(&good(p, below + (k % 2) as f32 * 1e-4, 200.0), 0.12));
+    assert_eq!(
+        tripped.last().unwrap().fault,
+        Some(Fault::Implausible(Check::Model))
+    );
+    // Disabled with 0 periods.
+    let mut c = controller_with(synthetic());
+    for k in 0..(3 * n) {
+        assert_eq!(c.update(&beside_band(&c, k, p, 0.1), 0.12).fault, None);
+    }
+}
+
+#[test]
+fn the_model_band_follows_the_pressure_with_the_lag() {
+    // A pressure step up: the contraction still at the old pressure's
+    // band is accepted while the lagged minimum relaxes (lag 50 ms), then
+    // not.
+    let cfg = model_only();
+    let mut c = controller_with(cfg);
+    let m = c.tracker().model().clone();
+    let x_old = m.contraction(0.1, Branch::Contraction);
+    for k in 0..200u32 {
+        let d = (k % 2) as f32 * 1e-4;
+        assert_eq!(c.update(&good(0.1 + d, x_old, 200.0), 0.12).fault, None);
+    }
+    let mut excess_at = Vec::new();
+    for k in 0..400u32 {
+        let d = (k % 2) as f32 * 1e-4;
+        let st = c.update(&good(0.45 + d, x_old + d, 200.0), 0.12);
+        excess_at.push(st.model_excess);
+    }
+    let bound = cfg.safety.implausible_contraction;
+    assert!(excess_at[0] < 0.1 * bound, "{}", excess_at[0]);
+    assert!(
+        excess_at[399] > cfg.safety.implausible_contraction,
+        "{excess_at:?}"
+    );
+}
+
+#[test]
+fn the_model_check_pauses_while_a_load_step_settles() {
+    let cfg = model_only();
+    let s = cfg.safety;
+    let mut c = controller_with(cfg);
+    let p = 0.35;
+    let x = c.tracker().model().contraction(p, Branch::Contraction);
+    // The load steps to 600 N; the muscle (this contraction) would belong
+    // to 200 N, outside the new load's band.
+    let heavy = Coeffs::new(Params::DEFAULT)
+        .unwrap()
+        .load_model_clamped(600.0);
+    assert!(x > heavy.contraction(p, Branch::Expansion) + s.implausible_contraction);
+    let mut switched_at = None;
+    let settle = (s.implausible_settle_s / cfg.dt_s) as u32;
+    for k in 0..(settle + u32::from(s.implausible_periods) + 10) {
+        let d = (k % 2) as f32 * 1e-4;
+        let st = c.update(&good(p + d, x, 600.0 + d), 0.12);
+        if st.tracker.load_switch.is_some() {
+            switched_at = Some(k);
+        }
+        if let Some(f) = st.new_fault {
+            let at = k - switched_at.unwrap();
+            assert_eq!(f, Fault::Implausible(Check::Model));
+            assert!(at >= settle, "{at}");
+            return;
+        }
+    }
+    panic!("never tripped after settling");
+}
+
+/// Readings with the muscle beyond a set-point far below (exhaust
+/// saturated open), the pressure at `p`, dithered by a count.
+fn venting(k: u32, p: f32) -> Sample {
+    let d = (k % 2) as f32 * 3e-4;
+    good(p + d, 0.2 + (k % 3) as f32 * 1e-4, 200.0 + d)
+}
+
+#[test]
+fn the_vent_check_faults_when_the_pressure_does_not_fall() {
+    let mut cfg = synthetic();
+    cfg.safety.vent_periods = ControllerConfig::DEFAULT.safety.vent_periods;
+    let s = cfg.safety;
+    let n = u32::from(s.vent_periods);
+    let mut c = controller_with(cfg);
+    for k in 0..n {
+        let st = c.update(&venting(k, 0.3), 0.02);
+        assert_eq!(st.fault, None, "{k}");
+        assert!(matches!(st.command, ValveCommand::Flow(f) if f <= -s.vent_flow));
+    }
+    let st = c.update(&venting(n, 0.3), 0.02);
+    assert_eq!(st.new_fault, Some(Fault::Implausible(Check::Vent)));
+    // Falling by the threshold per window: never.
+    let mut c = controller_with(cfg);
+    let per = s.vent_fall_mpa / n as f32 * 1.05;
+    for k in 0..(5 * n) {
+        let p = 0.45 - k as f32 * per;
+        assert_eq!(c.update(&venting(k, p), 0.02).fault, None, "{k} {p}");
+    }
+    // Near atmosphere there is nothing to vent: never.
+    let mut c = controller_with(cfg);
+    for k in 0..(5 * n) {
+        let st = c.update(&venting(k, s.vent_min_mpa * 0.5), 0.0);
+        assert_eq!(st.fault, None, "{k}");
+    }
+}
+
+#[test]
+fn overruns_in_a_row_fault_and_clear() {
+    let limit = ControllerConfig::DEFAULT.safety.overrun_limit;
+    let mut c = no_stuck_check();
+    let ok = |k: u16| good(0.2, 0.1 + f32::from(k % 2) * 1e-4, 200.0);
+    // Fewer than the limit in a row, repeatedly: never.
+    for k in 0..1000u16 {
+        c.record_overrun(k % limit != 0);
+        assert_eq!(c.update(&ok(k), 0.1).fault, None);
+    }
+    for k in 0..limit {
+        c.record_overrun(true);
+        let st = c.update(&ok(k), 0.1);
+        if k + 1 < limit {
+            assert_eq!(st.fault, None);
+        } else {
+            assert_eq!(st.new_fault, Some(Fault::Overrun));
+        }
+    }
+    c.record_overrun(false);
+    let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+    let recovered = (0..n).map(|k| c.update(&ok(k), 0.1)).any(|st| st.recovered);
+    assert!(recovered);
+}
+
+#[test]
+fn repeated_trips_latch_until_the_operator_resets() {
+    let s = ControllerConfig::DEFAULT.safety;
+    let mut c = no_stuck_check();
+    let ok = |k: u32| good(0.2, 0.1 + (k % 2) as f32 * 1e-4, 200.0);
+    let nan = Sample {
+        contraction: Ok(f32::NAN),
+        ..ok(0)
+    };
+    // One NaN every 60 samples: each trip recovers after 50, until the
+    // (latch_trips + 1)-th within the window latches.
+    let mut trips = 0;
+    for k in 0..(60 * u32::from(s.latch_trips + 1)) {
+        let st = c.update(&(if k % 60 == 0 { nan } else { ok(k) }), 0.1);
+        if st.new_fault.is_some() {
+            trips += 1;
+            assert_eq!(st.latched, trips > s.latch_trips);
+        }
+    }
+    assert!(c.latched());
+    // Good samples do not clear a latch.
+    for k in 0..20_000 {
+        let st = c.update(&ok(k), 0.1);
+        assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+        assert!(st.latched && !st.recovered);
+    }
+    // The operator's reset: control after the recovery run.
+    c.reset_latch();
+    assert!(!c.latched());
+    let mut recovered_after = None;
+    for k in 0..u32::from(s.recovery_samples) {
+        if c.update(&ok(k), 0.1).recovered {
+            recovered_after = Some(k + 1);
+        }
+    }
+    assert_eq!(recovered_after, Some(u32::from(s.recovery_samples)));
+    // Trips further apart than the window never latch.
+    let mut c = no_stuck_check();
+    let gap = s.latch_window_periods / u32::from(s.latch_trips) + 1;
+    for k in 0..(gap * 10) {
+        let st = c.update(&(if k % gap == 0 { nan } else { ok(k) }), 0.1);
+        assert!(!st.latched, "{k}");
+    }
+}
+
+#[test]
+fn a_latch_at_boot_holds_the_safe_state_until_reset() {
+    let mut c = no_stuck_check();
+    c.latch(Fault::Watchdog);
+    for k in 0..1000u32 {
+        let st = c.update(&good(0.2, 0.1 + (k % 2) as f32 * 1e-4, 200.0), 0.1);
+        assert_eq!(st.fault, Some(Fault::Watchdog));
+        assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+    }
+    c.reset_latch();
+    let n = u32::from(ControllerConfig::DEFAULT.safety.recovery_samples);
+    let st = (0..n)
+        .map(|k| c.update(&good(0.2, 0.1 + (k % 2) as f32 * 1e-4, 200.0), 0.1))
+        .last()
+        .unwrap();
+    assert!(st.recovered);
+}
+
+#[test]
+fn every_setting_names_itself_and_its_requirement() {
+    let e = ConfigError::Invalid(Setting::ImplausibleContraction);
+    assert_eq!(
+        std::format!("{e}"),
+        "`implausible_contraction` must be finite and > 0"
+    );
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.overpressure_margin_mpa = 0.0;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::OverpressureMarginMpa))
+    );
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.latch_window_periods = 0;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::LatchWindowPeriods))
+    );
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.implausible_lag_s = f32::NAN;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::ImplausibleLagS))
+    );
+}
