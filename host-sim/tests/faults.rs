@@ -303,3 +303,18 @@ fn corrupt_blob_is_refused_at_boot_with_valves_safe() {
         assert_eq!(o.duties, (0, SimPwm::MAX_DUTY));
     }
 }
+
+/// The survey over one hour of control (three scenarios, seeds 1–20):
+/// `cargo test --release -p host-sim --test faults -- --ignored`.
+#[test]
+#[ignore = "one hour of simulated control; run in release"]
+fn normal_runs_never_trip_over_an_hour() {
+    let cfg = ControllerConfig::DEFAULT;
+    let s = survey(cfg, 1..=20);
+    eprintln!(
+        "runs {} periods {} trips {} max excess {} beyond {}",
+        s.runs, s.periods, s.trips, s.max_model_excess, s.periods_beyond_bound
+    );
+    assert_eq!(s.trips, 0, "{:?}", s.tripped);
+    assert!(s.max_model_excess < cfg.safety.implausible_contraction);
+}
