@@ -6,7 +6,9 @@
 # (firmware/panic-check.sh), then runs the QEMU self-test image (run-pass:
 # exit 0 only when the tracking error stays within the stated bound and the
 # injected fault is caught) and the QEMU image with a corrupt coefficient
-# blob (must be refused at boot). The board controller is built and checked,
+# blob (must be refused at boot), and the QEMU image that panics on purpose
+# with the inlet open (its panic handler must put the valves safe first and
+# exit with code 101). The board controller is built and checked,
 # never run: QEMU's netduinoplus2 does not emulate the ADCs and timers as the
 # silicon behaves, and CI has no board.
 set -euo pipefail
@@ -64,6 +66,16 @@ set -e
 echo "$out" | tail -n 3
 if [ "$status" -eq 0 ] || ! grep -q "coefficient blob refused" <<<"$out"; then
   echo "firmware: the corrupt blob was not refused (exit $status)" >&2
+  exit 1
+fi
+echo "== firmware: QEMU, deliberate panic: valves safe first, exit code 101"
+set +e
+out=$(timeout 300 cargo fw-qemu-panic 2>&1)
+status=$?
+set -e
+echo "$out" | tail -n 4
+if [ "$status" -ne 101 ] || ! grep -q "panic handler: valves inlet duty 0/1000, exhaust 1000/1000" <<<"$out"; then
+  echo "firmware: the panic did not leave the valves safe with exit code 101 (exit $status)" >&2
   exit 1
 fi
 echo "firmware: OK"

@@ -17,6 +17,14 @@
 //! * Tick: TIM2 update interrupt at 1 kHz ([`init`] returns the counter; the
 //!   image unmasks the interrupt).
 //!
+//! * Watchdog: the IWDG, returned by [`init`] unstarted; the image starts
+//!   it with [`wiring::WATCHDOG_MS`] just before control begins and feeds
+//!   it after every completed step. [`init`] reads (and clears) the reset
+//!   flags, so the image knows a watchdog reset and boots latched.
+//! * Crash: [`valves_safe_now`] drives the valve pins to the safe state as
+//!   plain GPIO outputs, independent of the timer and of any driver state;
+//!   the image's panic and HardFault handlers call it first.
+//!
 //! Initialisation ([`init`]) may panic inside the HAL (its clock
 //! configuration asserts on impossible clock trees); that is before any
 //! control and before the valves can open. The control step
@@ -25,8 +33,8 @@
 
 use crate::controller::{Controller, Io, Step};
 use crate::hal::{
-    ContractionSensor, Counts, ErrorType, LinearCalibration, LoadCell, PressureCalibration,
-    PressureSensor, SafeState, SensorErrorKind, Valve, ValvePair,
+    ContractionSensor, Counts, ErrorType, HalConfigError, LinearCalibration, LoadCell,
+    PressureCalibration, PressureSensor, SafeState, SensorErrorKind, Valve, ValvePair,
 };
 use crate::wiring;
 use core::ops::Deref;
@@ -37,6 +45,7 @@ use stm32f4xx_hal::pac::{self, adc1::RegisterBlock as AdcRegisters, ADC1, ADC2, 
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Config, Enable, Rcc, Reset};
 use stm32f4xx_hal::timer::{CounterHz, Event, PwmChannel};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 /// Upper bound on status polls of one conversion, in case the cycle counter
 /// is stopped (it is started by [`init`]); far beyond the deadline at any
@@ -166,6 +175,71 @@ pub type BoardValve = ValvePair<PwmChannel<TIM1, 0>, PwmChannel<TIM1, 1>>;
 /// The board's hardware as the controller sees it.
 pub type BoardIo = Io<BoardPressure, BoardContraction, BoardLoad, BoardValve>;
 
+/// Why [`init`] refused to set up the board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum BoardError {
+    /// A calibration or the valve pair's settings in [`crate::wiring`].
+    Hal(HalConfigError),
+    /// The valve PWM has fewer than [`wiring::MIN_DUTY_STEPS`] duty steps
+    /// (timer clock or [`wiring::VALVE_PWM_HZ`] wrong).
+    DutySteps,
+    /// TIM2 refused [`wiring::CONTROL_HZ`].
+    ControlRate,
+}
+
+impl From<HalConfigError> for BoardError {
+    fn from(e: HalConfigError) -> Self {
+        BoardError::Hal(e)
+    }
+}
+
+impl core::fmt::Display for BoardError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            BoardError::Hal(e) => write!(f, "{e}"),
+            BoardError::DutySteps => {
+                f.write_str("valve PWM has too few duty steps (timer clock or VALVE_PWM_HZ)")
+            }
+            BoardError::ControlRate => f.write_str("TIM2 refused the control rate"),
+        }
+    }
+}
+
+/// Drive the valve pins to `safe` at once, as GPIO outputs: inlet (PA8)
+/// low, exhaust (PA9) high for [`SafeState::Exhaust`], both low for
+/// [`SafeState::Hold`]. For the panic and HardFault handlers: it does not
+/// need the timer, the HAL objects or any lock, only GPIOA, whose clock it
+/// enables. The output level is written before the pins switch from the
+/// timer's alternate function to output, so they never glitch open.
+///
+/// The valves are energise-to-open (wiring table in firmware/README.md):
+/// high is open. Whatever state the program was in, after this call
+/// nothing but a reset changes the pins (the caller never returns).
+pub fn valves_safe_now(safe: SafeState) {
+    // SAFETY: called only from the panic and HardFault handlers, which never
+    // return: no other code runs afterwards that could hold these register
+    // blocks. The writes are single-register read-modify-writes of GPIOA and
+    // RCC's enable bit, valid in any state of the chip.
+    #[allow(unsafe_code)]
+    let (rcc, gpioa) = unsafe { (pac::RCC::steal(), pac::GPIOA::steal()) };
+    rcc.ahb1enr().modify(|_, w| w.gpioaen().set_bit());
+    // BSRR: bits 0–15 set, 16–31 reset. PA8 (inlet) reset; PA9 (exhaust)
+    // set for Exhaust, reset for Hold.
+    let bsrr = match safe {
+        SafeState::Exhaust => (1 << (16 + 8)) | (1 << 9),
+        SafeState::Hold => (1 << (16 + 8)) | (1 << (16 + 9)),
+    };
+    // SAFETY: BSRR accepts any bit pattern (atomic set/reset of pins).
+    #[allow(unsafe_code)]
+    gpioa.bsrr().write(|w| unsafe { w.bits(bsrr) });
+    // MODER: 2 bits per pin, 0b01 = general-purpose output, for PA8 and PA9.
+    // SAFETY: only the two pins' fields change, to a valid mode.
+    #[allow(unsafe_code)]
+    gpioa
+        .moder()
+        .modify(|r, w| unsafe { w.bits((r.bits() & !(0xF << 16)) | (0b0101 << 16)) });
+}
+
 /// What [`init`] hands back.
 pub struct Board {
     /// Sensors and valves.
@@ -175,6 +249,13 @@ pub struct Board {
     pub tick: CounterHz<TIM2>,
     /// The PWM channels' full duty (timer counts per period).
     pub max_duty: u16,
+    /// The independent watchdog, not started (it cannot be stopped once
+    /// started; the image starts it when control begins).
+    pub watchdog: IndependentWatchdog,
+    /// The last reset was the independent watchdog's (the reset flags are
+    /// cleared by [`init`], so a later reset by the NRST pin or a power
+    /// cycle reads `false`).
+    pub watchdog_reset: bool,
 }
 
 /// Clocks, valves (left in `safe`), sensors and the control tick.
@@ -187,7 +268,10 @@ pub fn init(
     dcb: &mut cortex_m::peripheral::DCB,
     dwt: &mut DWT,
     safe: SafeState,
-) -> Result<Board, &'static str> {
+) -> Result<Board, BoardError> {
+    // Why the chip reset; then clear the flags for the next boot.
+    let watchdog_reset = dp.RCC.csr().read().wdgrstf().bit_is_set();
+    dp.RCC.csr().modify(|_, w| w.rmvf().set_bit());
     let mut rcc = dp.RCC.freeze(
         Config::hse(wiring::HSE_HZ.Hz())
             .sysclk(wiring::SYSCLK_HZ.Hz())
@@ -214,7 +298,7 @@ pub fn init(
     // A wrapped or tiny ARR would make every duty 0 or coarse.
     if max_duty < wiring::MIN_DUTY_STEPS {
         let _ = valve.set_safe(safe);
-        return Err("valve PWM has too few duty steps (timer clock or VALVE_PWM_HZ)");
+        return Err(BoardError::DutySteps);
     }
     let _ = valve.set_safe(safe);
 
@@ -239,7 +323,7 @@ pub fn init(
 
     let mut tick = dp.TIM2.counter_hz(&mut rcc);
     tick.start(wiring::CONTROL_HZ.Hz())
-        .map_err(|_| "TIM2 refused the control rate")?;
+        .map_err(|_| BoardError::ControlRate)?;
     tick.listen(Event::Update);
 
     Ok(Board {
@@ -251,6 +335,13 @@ pub fn init(
         },
         tick,
         max_duty,
+        watchdog: {
+            let w = IndependentWatchdog::new(dp.IWDG);
+            // Halted by a debugger, the IWDG stops too (probe-rs breakpoints).
+            w.stop_on_debug(&dp.DBGMCU, true);
+            w
+        },
+        watchdog_reset,
     })
 }
 

@@ -51,6 +51,41 @@ impl core::fmt::Display for SensorErrorKind {
     }
 }
 
+/// Why a calibration or a valve setting was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum HalConfigError {
+    /// The calibration's slope (`mpa_per_count`, `units_per_count`) is zero
+    /// or not finite.
+    Slope,
+    /// The calibration's `zero_counts` is not finite.
+    Zero,
+    /// The calibration's `min_valid` exceeds `max_valid`.
+    Window,
+    /// A [`ValvePairConfig::deadband`] outside `[0, 1)`.
+    Deadband,
+    /// A [`ValvePairConfig::min_open_duty`] outside `[0, 1)`.
+    MinOpenDuty,
+    /// A [`ProportionalValve`] closed duty outside `(0, 1)`.
+    ClosedDuty,
+}
+
+impl core::fmt::Display for HalConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            HalConfigError::Slope => "calibration slope must be finite and non-zero",
+            HalConfigError::Zero => "calibration zero_counts must be finite",
+            HalConfigError::Window => "calibration min_valid must not exceed max_valid",
+            HalConfigError::Deadband => "valve deadband must be in [0, 1)",
+            HalConfigError::MinOpenDuty => "valve min_open_duty must be in [0, 1)",
+            HalConfigError::ClosedDuty => "valve closed_duty must be in (0, 1)",
+        })
+    }
+}
+
+impl core::error::Error for HalConfigError {}
+
 /// A sensor error: any type that can say which [`SensorErrorKind`] it is.
 pub trait SensorError: core::fmt::Debug {
     /// The generic kind of this error.
@@ -117,15 +152,15 @@ impl PressureCalibration {
 
     /// Check that the calibration can convert: finite, non-zero slope,
     /// finite zero, non-empty window.
-    pub fn validate(&self) -> Result<(), &'static str> {
+    pub fn validate(&self) -> Result<(), HalConfigError> {
         if !(self.mpa_per_count.is_finite() && self.mpa_per_count != 0.0) {
-            return Err("mpa_per_count must be finite and non-zero");
+            return Err(HalConfigError::Slope);
         }
         if !self.zero_counts.is_finite() {
-            return Err("zero_counts must be finite");
+            return Err(HalConfigError::Zero);
         }
         if self.min_valid > self.max_valid {
-            return Err("min_valid must not exceed max_valid");
+            return Err(HalConfigError::Window);
         }
         Ok(())
     }
@@ -173,15 +208,15 @@ pub struct LinearCalibration {
 impl LinearCalibration {
     /// Check that the calibration can convert: finite, non-zero slope,
     /// finite zero, non-empty window.
-    pub fn validate(&self) -> Result<(), &'static str> {
+    pub fn validate(&self) -> Result<(), HalConfigError> {
         if !(self.units_per_count.is_finite() && self.units_per_count != 0.0) {
-            return Err("units_per_count must be finite and non-zero");
+            return Err(HalConfigError::Slope);
         }
         if !self.zero_counts.is_finite() {
-            return Err("zero_counts must be finite");
+            return Err(HalConfigError::Zero);
         }
         if self.min_valid > self.max_valid {
-            return Err("min_valid must not exceed max_valid");
+            return Err(HalConfigError::Window);
         }
         Ok(())
     }
@@ -325,9 +360,9 @@ pub struct ProportionalValve<P> {
 impl<P: SetDutyCycle> ProportionalValve<P> {
     /// A valve on `pwm` whose closed centre is at `closed_duty` (fraction of
     /// full duty, strictly between 0 and 1; typically 0.5).
-    pub fn new(pwm: P, closed_duty: f32) -> Result<Self, &'static str> {
+    pub fn new(pwm: P, closed_duty: f32) -> Result<Self, HalConfigError> {
         if !(closed_duty > 0.0 && closed_duty < 1.0) {
-            return Err("closed_duty must be in (0, 1)");
+            return Err(HalConfigError::ClosedDuty);
         }
         Ok(ProportionalValve { pwm, closed_duty })
     }
@@ -388,12 +423,12 @@ impl ValvePairConfig {
     };
 
     /// Check: both in `[0, 1)`.
-    pub fn validate(&self) -> Result<(), &'static str> {
+    pub fn validate(&self) -> Result<(), HalConfigError> {
         if !(self.deadband >= 0.0 && self.deadband < 1.0) {
-            return Err("deadband must be in [0, 1)");
+            return Err(HalConfigError::Deadband);
         }
         if !(self.min_open_duty >= 0.0 && self.min_open_duty < 1.0) {
-            return Err("min_open_duty must be in [0, 1)");
+            return Err(HalConfigError::MinOpenDuty);
         }
         Ok(())
     }
@@ -437,7 +472,7 @@ pub struct ValvePair<I, E> {
 
 impl<I: SetDutyCycle, E: SetDutyCycle> ValvePair<I, E> {
     /// A pair on two PWM channels.
-    pub fn new(inlet: I, exhaust: E, config: ValvePairConfig) -> Result<Self, &'static str> {
+    pub fn new(inlet: I, exhaust: E, config: ValvePairConfig) -> Result<Self, HalConfigError> {
         config.validate()?;
         Ok(ValvePair {
             inlet,

@@ -2,36 +2,26 @@
 //!
 //! ## Example
 //!
-//! The controller on the simulated bus: contract, then a sensor fault.
+//! One control period on a sample (what [`Controller::step`] does between
+//! reading the sensors and writing the valves): contract, then a sensor
+//! fault.
 //!
 //! ```
-//! use firmware::controller::{Controller, ControllerConfig, Io, ValveCommand};
-//! use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
-//! use firmware::plant::{SimBus, SimContraction, SimLoad, SimPressure, SimPwm};
+//! use firmware::controller::{Controller, ControllerConfig, Fault, Sample, SensorId, ValveCommand};
+//! use firmware::hal::SafeState;
 //!
 //! let blob = pam_core::blob::encode(&pam_core::Params::DEFAULT);
 //! let mut ctl = Controller::from_blob(&blob, ControllerConfig::DEFAULT, 200.0).unwrap();
-//! let bus = SimBus::new();
-//! let cal = PressureCalibration::ADC12_0_1MPA;
-//! let mut io = Io {
-//!     pressure: SimPressure { bus: &bus, calibration: cal },
-//!     contraction: SimContraction(&bus),
-//!     load: SimLoad(&bus),
-//!     valve: ValvePair::new(SimPwm(&bus.inlet_duty), SimPwm(&bus.exhaust_duty), ValvePairConfig::DEFAULT).unwrap(),
-//! };
 //! // Muscle at rest, asked to contract by 10 %: the inlet opens.
-//! bus.pressure_counts.set(cal.to_counts(0.0));
-//! bus.contraction.set(0.02);
-//! bus.load_n.set(200.0);
-//! let step = ctl.step(&mut io, 0.10);
+//! let rest = Sample { pressure_mpa: Ok(0.0), contraction: Ok(0.02), load_n: Ok(200.0) };
+//! let step = ctl.update(&rest, 0.10);
 //! assert_eq!(step.fault, None);
 //! assert!(matches!(step.command, ValveCommand::Flow(f) if f > 0.0));
-//! assert!(bus.inlet_duty.get() > 0 && bus.exhaust_duty.get() == 0);
 //! // A NaN from the position sensor: exhaust in the same step.
-//! bus.contraction.set(f32::NAN);
-//! let step = ctl.step(&mut io, 0.10);
-//! assert!(step.new_fault.is_some());
-//! assert_eq!((bus.inlet_duty.get(), bus.exhaust_duty.get()), (0, SimPwm::MAX_DUTY));
+//! let bad = Sample { contraction: Ok(f32::NAN), ..rest };
+//! let step = ctl.update(&bad, 0.10);
+//! assert_eq!(step.new_fault, Some(Fault::NonFinite(SensorId::Contraction)));
+//! assert_eq!(step.command, ValveCommand::Safe(SafeState::Exhaust));
 //! ```
 #![cfg_attr(not(test), no_std)]
 #![warn(missing_docs)]
@@ -39,10 +29,17 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod controller;
+pub mod exercise;
 pub mod hal;
-pub mod plant;
-pub mod scenario;
 pub mod wiring;
+
+// The simulated muscle and the self-test scenario: only in the self-test
+// images (feature `sim`, enabled by `selftest` and `qemu`) and in tests; the
+// board controller does not contain them.
+#[cfg(any(test, feature = "sim"))]
+pub mod plant;
+#[cfg(any(test, feature = "sim"))]
+pub mod scenario;
 
 #[cfg(all(target_os = "none", feature = "chip"))]
 pub mod board;

@@ -10,31 +10,55 @@
 //! three ADC conversions, the controller, two PWM duties. On any fault the
 //! controller puts the valves in its safe state in that same step.
 //!
-//! The set-point is the exercise of [`firmware::scenario::triangle`]
+//! The set-point is the exercise of [`firmware::exercise::triangle`]
 //! (contraction 0.06 → 0.16 → 0.06, 4 s period, repeated); replace
 //! [`setpoint`] with the orthosis's own set-point source.
 //!
-//! Every 10 s the interrupt logs the largest step time in core cycles and
-//! the number of overruns (a tick that arrived before its step finished).
+//! Every tick reports to the controller whether it overran (the next tick
+//! arrived before the step finished); `overrun_limit` overruns in a row are
+//! `Fault::Overrun`. Every 10 s the interrupt logs the largest step time in
+//! core cycles and the number of overruns since boot.
+//!
+//! # When things go wrong
+//! * **Stall**: the independent watchdog ([`wiring::WATCHDOG_MS`]) is
+//!   started just before control begins and fed only after a completed
+//!   control step. A stalled loop (an endless loop, a lock-up, an interrupt
+//!   that no longer fires) resets the chip: the valve pins are undriven
+//!   during the reset (both valves de-energise and close: the muscle holds
+//!   its air), then boot writes the safe state and, seeing the watchdog's
+//!   reset flag, starts **latched** (`Fault::Watchdog`): no control until
+//!   an operator resets the board (NRST button or power cycle).
+//! * **Panic, HardFault**: the handlers first drive the valve pins to the
+//!   safe state directly ([`board::valves_safe_now`]), then log and wait
+//!   for the watchdog, which resets into the latched boot above (before the
+//!   watchdog is started, they halt with the valves safe).
+//! * **Latched faults** (more than `latch_trips` trips within the window):
+//!   the valves stay safe; the operator resets with the NRST button or a
+//!   power cycle (the latch lives in RAM).
 #![no_std]
 #![no_main]
 
 use core::cell::RefCell;
+use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::entry;
 use critical_section::Mutex;
 use defmt_rtt as _;
 use firmware::board::{self, pam_board_control_step, BoardIo};
-use firmware::controller::ControllerConfig;
-use firmware::hal::{LoadCell, Valve};
-use firmware::{scenario, wiring, Controller};
-use panic_probe as _;
+use firmware::controller::{ControllerConfig, Fault};
+use firmware::hal::{LoadCell, SafeState, Valve};
+use firmware::{exercise, wiring, Controller};
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt, TIM2};
+use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::timer::{CounterHz, Flag};
+use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use stm32f4xx_hal::{ClearFlags, ReadFlags};
 
+/// The safe state the crash handlers write (the controller's default).
+const SAFE: SafeState = ControllerConfig::DEFAULT.safety.safe_state;
+
 /// Ticks in one period of the exercise trajectory.
-const TRAJECTORY_TICKS: u32 = (scenario::PERIOD_S * wiring::CONTROL_HZ as f32) as u32;
+const TRAJECTORY_TICKS: u32 = (exercise::PERIOD_S * wiring::CONTROL_HZ as f32) as u32;
 /// Ticks between two timing reports (10 s).
 const REPORT_TICKS: u32 = 10 * wiring::CONTROL_HZ;
 
@@ -43,6 +67,8 @@ struct ControlLoop {
     ctl: Controller,
     io: BoardIo,
     tick: CounterHz<TIM2>,
+    /// Fed after every completed step.
+    watchdog: IndependentWatchdog,
     /// Position in the trajectory, ticks (`< TRAJECTORY_TICKS`).
     phase: u32,
     /// Steps since boot (wraps after 49 days; used only in log lines).
@@ -62,7 +88,7 @@ static LOOP: Mutex<RefCell<Option<ControlLoop>>> = Mutex::new(RefCell::new(None)
 
 /// The desired contraction at `phase` ticks into the trajectory.
 fn setpoint(phase: u32) -> f32 {
-    scenario::triangle(phase as f32 * ControllerConfig::DEFAULT.dt_s)
+    exercise::triangle(phase as f32 * ControllerConfig::DEFAULT.dt_s)
 }
 
 /// No control: valves stay where `init` left them (safe), the core sleeps.
@@ -112,7 +138,7 @@ fn main() -> ! {
         Ok(l) if l.is_finite() => l,
         _ => coeffs.params().min_load_n,
     };
-    let ctl = match Controller::new(coeffs, config, load_n) {
+    let mut ctl = match Controller::new(coeffs, config, load_n) {
         Ok(c) => c,
         Err(e) => {
             defmt::error!("boot: controller refused: {}; valves safe, no control", e);
@@ -125,12 +151,26 @@ fn main() -> ! {
         pam_core::blob::BLOB_LEN,
         load_n
     );
+    if board.watchdog_reset {
+        // The last run stalled: do not resume on our own.
+        ctl.latch(Fault::Watchdog);
+        defmt::error!(
+            "boot: reset by the watchdog; valves safe and latched until NRST or power cycle"
+        );
+    }
+    let mut watchdog = board.watchdog;
 
     critical_section::with(|cs| {
         LOOP.borrow(cs).replace(Some(ControlLoop {
             ctl,
             io: board.io,
             tick: board.tick,
+            watchdog: {
+                // From here a stall resets the chip. `start` cannot fail for
+                // this constant (it asserts a timeout below 32.8 s).
+                watchdog.start(wiring::WATCHDOG_MS.millis());
+                watchdog
+            },
             phase: 0,
             steps: 0,
             max_cycles: 0,
@@ -167,9 +207,13 @@ fn control(s: &mut ControlLoop) {
     let t0 = DWT::cycle_count();
     let step = pam_board_control_step(&mut s.ctl, &mut s.io, setpoint(s.phase));
     let cycles = DWT::cycle_count().wrapping_sub(t0);
-    if s.tick.flags().contains(Flag::Update) {
+    let overran = s.tick.flags().contains(Flag::Update);
+    if overran {
         s.overruns = s.overruns.saturating_add(1);
     }
+    s.ctl.record_overrun(overran);
+    // Fed only here, after a step that completed.
+    s.watchdog.feed();
     s.max_cycles = s.max_cycles.max(cycles);
     s.phase = if s.phase + 1 >= TRAJECTORY_TICKS {
         0
@@ -180,6 +224,12 @@ fn control(s: &mut ControlLoop) {
 
     if let Some(f) = step.new_fault {
         defmt::warn!("step {}: fault: {}; valves safe", s.steps, f);
+    }
+    if step.latched && step.new_fault.is_some() {
+        defmt::error!(
+            "step {}: valves latched safe until NRST or power cycle",
+            s.steps
+        );
     }
     if step.recovered {
         defmt::info!("step {}: recovered after a run of good readings", s.steps);
@@ -193,5 +243,34 @@ fn control(s: &mut ControlLoop) {
             s.overruns
         );
         s.max_cycles = 0;
+    }
+}
+
+/// Set by the first panic: a panic inside the handler (defmt's logger
+/// taken, say) must not recurse into logging.
+static PANICKING: AtomicBool = AtomicBool::new(false);
+
+/// Valves safe first, then (once) the log line, then wait for the
+/// watchdog to reset into the latched boot (before the watchdog runs:
+/// stay here, valves safe).
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    board::valves_safe_now(SAFE);
+    if !PANICKING.swap(true, Ordering::Relaxed) {
+        defmt::error!("panic: {}; valves safe", defmt::Display2Format(info));
+    }
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+/// As the panic handler: valves safe first, then wait for the watchdog.
+// cortex-m-rt requires the HardFault handler to be `unsafe fn`.
+#[allow(unsafe_code)]
+#[cortex_m_rt::exception]
+unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    board::valves_safe_now(SAFE);
+    loop {
+        cortex_m::asm::nop();
     }
 }

@@ -20,6 +20,7 @@
 //! [`crate::scenario`]), so the feedforward is not exact.
 
 use core::cell::Cell;
+use core::sync::atomic::{AtomicU16, Ordering};
 
 use crate::controller::SensorId;
 use crate::hal::{
@@ -302,6 +303,33 @@ impl SetDutyCycle for SimPwm<'_> {
         } else {
             duty
         });
+        Ok(())
+    }
+}
+
+/// A simulated PWM channel whose duty is a `static` atomic, so a panic
+/// handler can reach it (the self-test's stand-in for the board's valve
+/// pins, which [`crate::board`]'s handlers drive directly).
+#[derive(Debug)]
+pub struct StaticPwm(pub &'static AtomicU16);
+
+impl PwmErrorType for StaticPwm {
+    type Error = core::convert::Infallible;
+}
+
+impl SetDutyCycle for StaticPwm {
+    fn max_duty_cycle(&self) -> u16 {
+        SimPwm::MAX_DUTY
+    }
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
+        self.0.store(
+            if duty > SimPwm::MAX_DUTY {
+                SimPwm::MAX_DUTY
+            } else {
+                duty
+            },
+            Ordering::Relaxed,
+        );
         Ok(())
     }
 }

@@ -27,12 +27,8 @@ use crate::plant::{
 };
 use pam_core::{Coeffs, Params};
 
-/// Lower end of the triangle, contraction.
-pub const LOW: f32 = 0.06;
-/// Upper end of the triangle, contraction.
-pub const HIGH: f32 = 0.16;
-/// Period of the triangle, s.
-pub const PERIOD_S: f32 = 4.0;
+pub use crate::exercise::{triangle, HIGH, LOW, PERIOD_S};
+
 /// Number of periods.
 pub const CYCLES: u32 = 3;
 /// Load on the muscle, N.
@@ -58,18 +54,6 @@ pub fn plant_params() -> Params {
     p.ellipse_height_mpa *= 1.25;
     p.c_growth_per_step *= 1.1;
     p
-}
-
-/// The desired contraction at time `t_s`.
-pub fn triangle(t_s: f32) -> f32 {
-    let phase = t_s / PERIOD_S;
-    let frac = phase - (phase as u32) as f32;
-    let up = if frac < 0.5 {
-        2.0 * frac
-    } else {
-        2.0 - 2.0 * frac
-    };
-    LOW + (HIGH - LOW) * up
 }
 
 /// What the run measured.
@@ -147,8 +131,7 @@ pub fn run(
         SimPwm(&bus.inlet_duty),
         SimPwm(&bus.exhaust_duty),
         ValvePairConfig::DEFAULT,
-    )
-    .map_err(|why| ConfigError::Invalid("valve pair", why))?;
+    )?;
     let mut io = Io {
         pressure: SimPressure {
             bus: &bus,

@@ -34,6 +34,12 @@ pub const PCLK2_HZ: u32 = 84_000_000;
 /// `ControllerConfig::DEFAULT.dt_s`.
 pub const CONTROL_HZ: u32 = 1_000;
 
+/// Independent watchdog timeout, ms (nominal: the IWDG runs on the LSI RC
+/// oscillator, 32 kHz nominal, 17–47 kHz over the F405's range, so the
+/// real timeout is 14–38 ms). The control interrupt feeds it after every
+/// completed step; 20 missed periods reset the chip into the safe state.
+pub const WATCHDOG_MS: u32 = 20;
+
 /// PWM frequency of the valve channels, Hz. 25 Hz is a 40 ms period, so
 /// `ValvePairConfig::DEFAULT.min_open_duty` (5 %) is the 2 ms opening time of
 /// a fast on/off valve. A proportional valve behind an RC filter wants

@@ -22,4 +22,5 @@ pub use rig::{Rig, Sample, TrueState};
 pub mod bench;
 pub mod faults;
 pub mod hal_mocks;
+pub mod harness;
 pub mod scenarios;

@@ -11,22 +11,44 @@
 //! faults and recoveries are logged through defmt (and, under QEMU, over
 //! semihosting), and the result decides the exit code under QEMU (0 only if
 //! the run passes).
+//!
+//! With feature `qemu-panic` (`cargo fw-qemu-panic`) the image instead runs
+//! the controller on the simulated muscle with the inlet filling, then
+//! panics on purpose: the panic handler must put the valves in the safe
+//! state before anything else; it prints the duties and exits with code
+//! [`PANIC_EXIT_CODE`] when they are safe (1 otherwise).
 #![no_std]
 #![no_main]
 
 #[cfg(all(feature = "selftest", feature = "qemu"))]
 compile_error!("enable one of the features `selftest` (board) and `qemu`, not both");
 
+#[cfg(feature = "qemu")]
+use core::sync::atomic::{AtomicU16, Ordering};
 use cortex_m_rt::entry;
 use defmt_rtt as _;
 use firmware::controller::{ControllerConfig, Feedforward, Step};
 use firmware::hal::{SafeState, Valve, ValvePair, ValvePairConfig};
+#[cfg(feature = "qemu")]
+use firmware::plant::StaticPwm;
 use firmware::plant::{SimBus, SimPwm};
 use firmware::scenario::{self, Report};
 use firmware::Controller;
 use pam_core::blob::BLOB_LEN;
 #[cfg(not(feature = "qemu"))]
 use panic_probe as _;
+
+/// Exit code of the `qemu-panic` image when the panic handler left the
+/// valves safe (the code a Rust program exits with on a panic).
+#[cfg(feature = "qemu")]
+pub const PANIC_EXIT_CODE: u32 = 101;
+
+/// The valve duties of the `qemu-panic` run, statics so the panic handler
+/// reaches them as the board's reaches its pins.
+#[cfg(feature = "qemu")]
+static INLET_DUTY: AtomicU16 = AtomicU16::new(0);
+#[cfg(feature = "qemu")]
+static EXHAUST_DUTY: AtomicU16 = AtomicU16::new(0);
 
 /// Log through defmt and, in the QEMU image, over semihosting as text.
 macro_rules! log {
@@ -77,6 +99,76 @@ fn report(name: &str, r: &Report) {
     );
 }
 
+/// The `qemu-panic` run: control on the simulated muscle, set-point at
+/// the top of the stroke, so the inlet is filling; then a deliberate panic.
+#[cfg(feature = "qemu")]
+fn panic_demo(blob: &[u8]) -> ! {
+    use firmware::controller::Io;
+    use firmware::hal::PressureCalibration;
+    use firmware::plant::{MusclePlant, Noise, PlantConfig, SimContraction, SimLoad, SimPressure};
+    let Ok(mut ctl) = Controller::from_blob(blob, ControllerConfig::DEFAULT, scenario::LOAD_N)
+    else {
+        finish(false)
+    };
+    let Ok(valve) = ValvePair::new(
+        StaticPwm(&INLET_DUTY),
+        StaticPwm(&EXHAUST_DUTY),
+        ValvePairConfig::DEFAULT,
+    ) else {
+        finish(false)
+    };
+    let bus = SimBus::new();
+    let calibration = PressureCalibration::ADC12_0_1MPA;
+    let mut io = Io {
+        pressure: SimPressure {
+            bus: &bus,
+            calibration,
+        },
+        contraction: SimContraction(&bus),
+        load: SimLoad(&bus),
+        valve,
+    };
+    let mut plant = MusclePlant::new(
+        ctl.coeffs().load_model_clamped(scenario::LOAD_N),
+        PlantConfig::DEFAULT,
+    );
+    let mut noise = Noise::new(7);
+    let dt_s = ControllerConfig::DEFAULT.dt_s;
+    let max = f32::from(SimPwm::MAX_DUTY);
+    for _ in 0..40 {
+        bus.publish(
+            &plant,
+            scenario::LOAD_N,
+            &calibration,
+            &mut noise,
+            scenario::NOISE,
+        );
+        ctl.step(&mut io, scenario::HIGH);
+        let (i, e) = (
+            INLET_DUTY.load(Ordering::Relaxed),
+            EXHAUST_DUTY.load(Ordering::Relaxed),
+        );
+        plant.step(f32::from(i) / max, f32::from(e) / max, dt_s);
+    }
+    let (i, e) = (
+        INLET_DUTY.load(Ordering::Relaxed),
+        EXHAUST_DUTY.load(Ordering::Relaxed),
+    );
+    cortex_m_semihosting::hprintln!(
+        "before the panic: inlet duty {}/{}, exhaust {}/{}, pressure {} MPa",
+        i,
+        SimPwm::MAX_DUTY,
+        e,
+        SimPwm::MAX_DUTY,
+        plant.pressure_mpa()
+    );
+    // The deliberate fault: an index the compiler cannot see is out of range.
+    let table = [0u8; 4];
+    let k = core::hint::black_box(usize::from(i) + 4);
+    let _ = core::hint::black_box(table[k]);
+    finish(false)
+}
+
 #[entry]
 fn main() -> ! {
     // The image's valves are the simulated pair; put them in the safe state
@@ -103,6 +195,10 @@ fn main() -> ! {
         finish(false)
     }
     log!(info, "boot: coefficient blob accepted ({} bytes)", BLOB_LEN);
+    #[cfg(feature = "qemu")]
+    if cfg!(feature = "qemu-panic") {
+        panic_demo(blob)
+    }
 
     let run = |ff: Feedforward, events: bool| {
         scenario::run(blob, ff, |k, s| {
@@ -141,19 +237,61 @@ fn main() -> ! {
     finish(passed)
 }
 
-/// Under QEMU a panic must end the emulator with a failure, not hang it.
+/// The exhaust-safe duties, straight to the valve channels.
+#[cfg(feature = "qemu")]
+fn valves_safe_now() {
+    INLET_DUTY.store(0, Ordering::Relaxed);
+    EXHAUST_DUTY.store(SimPwm::MAX_DUTY, Ordering::Relaxed);
+}
+
+/// Under QEMU: valves safe first, then report and end the emulator (with
+/// [`PANIC_EXIT_CODE`] in the `qemu-panic` image when the valves read
+/// safe, with a failure otherwise).
 #[cfg(feature = "qemu")]
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
+    valves_safe_now();
+    let (i, e) = (
+        INLET_DUTY.load(Ordering::Relaxed),
+        EXHAUST_DUTY.load(Ordering::Relaxed),
+    );
     cortex_m_semihosting::hprintln!("panic: {}", info);
+    cortex_m_semihosting::hprintln!(
+        "panic handler: valves inlet duty {}/{}, exhaust {}/{}",
+        i,
+        SimPwm::MAX_DUTY,
+        e,
+        SimPwm::MAX_DUTY
+    );
+    if cfg!(feature = "qemu-panic") && (i, e) == (0, SimPwm::MAX_DUTY) {
+        cortex_m_semihosting::hprintln!("panic handler: valves safe (exhaust open, inlet closed)");
+        exit_with(PANIC_EXIT_CODE);
+    }
     finish(false)
 }
 
-/// Under QEMU a hard fault must end the emulator with a failure, not hang it.
+/// Semihosting `SYS_EXIT_EXTENDED`: QEMU exits with `code`.
+#[cfg(feature = "qemu")]
+fn exit_with(code: u32) {
+    /// `ADP_Stopped_ApplicationExit`.
+    const APPLICATION_EXIT: u32 = 0x20026;
+    /// `SYS_EXIT_EXTENDED`.
+    const SYS_EXIT_EXTENDED: usize = 0x20;
+    let block = [APPLICATION_EXIT, code];
+    // SAFETY: the semihosting call reads the two-word block, which lives on
+    // this stack frame for the call's duration.
+    #[allow(unsafe_code)]
+    unsafe {
+        cortex_m_semihosting::syscall(SYS_EXIT_EXTENDED, &block)
+    };
+}
+
+/// Under QEMU: valves safe first, then end the emulator with a failure.
 #[cfg(feature = "qemu")]
 #[allow(unsafe_code)] // cortex-m-rt requires the HardFault handler to be `unsafe fn`.
 #[cortex_m_rt::exception]
 unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
-    cortex_m_semihosting::hprintln!("hard fault at pc {:#010x}", frame.pc());
+    valves_safe_now();
+    cortex_m_semihosting::hprintln!("hard fault at pc {:#010x}; valves safe", frame.pc());
     finish(false)
 }

@@ -1,0 +1,451 @@
+//! Configuration of the controller and its validation: gains, rate,
+//! feedforward, mode tracker and the safety monitor's limits. Validated once
+//! ([`ControllerConfig::validate`], called by `Controller::new`); the step
+//! never checks a setting again.
+
+use crate::hal::{HalConfigError, SafeState};
+use pam_core::effects::NonLocalMemory;
+use pam_core::TrackerConfig;
+
+/// Limits of the safety monitor ([`super::monitor`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SafetyConfig {
+    /// What the valves do during a fault.
+    pub safe_state: SafeState,
+    /// Lowest plausible pressure reading, MPa gauge.
+    pub pressure_min_mpa: f32,
+    /// Highest plausible pressure reading, MPa gauge.
+    pub pressure_max_mpa: f32,
+    /// Lowest plausible contraction reading (fraction of rest length).
+    pub contraction_min: f32,
+    /// Highest plausible contraction reading.
+    pub contraction_max: f32,
+    /// Tolerance on the load reading beyond the calibrated range of the
+    /// coefficients, N (≥ 0). A load cell at exactly `min_load_n` or
+    /// `max_load_n` reads on both sides of it from noise alone; without a
+    /// margin the controller would chatter in and out of the safe state.
+    /// Within `[min_load_n − margin, max_load_n + margin]` the mode tracker
+    /// clamps the load to the calibrated range (the model at the nearest
+    /// end); beyond it the reading is [`Fault::OutOfRange`]`(Load)`.
+    ///
+    /// [`Fault::OutOfRange`]: super::Fault::OutOfRange
+    pub load_margin_n: f32,
+    /// Over-pressure: a plausible pressure reading above the model's `Pmax`
+    /// by more than this, MPa (> 0), is [`Fault::OverPressure`]. The loop
+    /// never commands more than `Pmax`, so a chamber above it means the
+    /// inlet or the exhaust is not doing what it is told (inlet stuck open,
+    /// exhaust stuck closed while the muscle is squeezed) or a stall let
+    /// the inlet run.
+    ///
+    /// [`Fault::OverPressure`]: super::Fault::OverPressure
+    pub overpressure_margin_mpa: f32,
+    /// A reading identical to the bit for more than this many consecutive
+    /// samples is stuck; 0 disables the check. Real converters dither by at
+    /// least one count; a simulated sensor must add noise too.
+    pub stuck_samples: u16,
+    /// Consecutive good samples before leaving the safe state (≥ 1).
+    pub recovery_samples: u16,
+    /// Supply-loss check: a flow command at or above this (in `(0, 1]`)
+    /// counts as "inlet open".
+    ///
+    /// What it mitigates: with the supply gone the inlet cannot fill the
+    /// muscle (with a hose off it even vents it backwards), the error grows
+    /// and the PI drives the inlet to full open; nothing else in the
+    /// monitor notices, since every sensor reads fine. The check turns that
+    /// into [`Fault::SupplyLoss`] and the safe state.
+    ///
+    /// Rule: the command issued in each of the last `supply_loss_periods`
+    /// periods was `≥ supply_loss_flow`, and the pressure now is less than
+    /// `supply_loss_rise_mpa` above the pressure read when the first of them
+    /// was issued (a rise of at least that much restarts the window).
+    ///
+    /// False positives: a supply that is present but at or below the
+    /// pressure the loop asks for (a regulator set below `Pmax` +
+    /// `supply_loss_flow / pressure_gain_per_mpa`) also saturates the inlet
+    /// without a rise, and trips it; at the default 0.95 and 20 /MPa the
+    /// supply must exceed `Pmax` (0.5 MPa) by about 0.05 MPa, the rig's is
+    /// 0.6 MPa. A healthy inlet at full opening fills by far more than
+    /// `supply_loss_rise_mpa` in the window, also while the muscle contracts.
+    ///
+    /// Retry: the sensors are healthy during a supply loss, so control
+    /// resumes after `recovery_samples` good samples like after any fault;
+    /// if the supply is still gone the check trips again one window later
+    /// (a retry every `supply_loss_periods + recovery_samples` periods, with
+    /// the muscle vented in between), until the latch
+    /// ([`latch_trips`](Self::latch_trips)) stops the retries.
+    ///
+    /// [`Fault::SupplyLoss`]: super::Fault::SupplyLoss
+    pub supply_loss_flow: f32,
+    /// Supply-loss window, control periods; 0 disables the check.
+    pub supply_loss_periods: u16,
+    /// Least pressure rise over the window with the inlet open, MPa (> 0;
+    /// well above the pressure sensor's noise, 0.8 kPa RMS on the rig).
+    pub supply_loss_rise_mpa: f32,
+    /// Vent check, the mirror of the supply-loss check: a flow command at
+    /// or below `−vent_flow` (in `(0, 1]`) counts as "exhaust open".
+    ///
+    /// What it mitigates: an exhaust valve stuck closed, or an inlet stuck
+    /// open (which the open exhaust cannot out-vent): the loop asks for
+    /// less pressure, saturates the exhaust, and the pressure does not
+    /// fall. Rule: the command issued in each of the last `vent_periods`
+    /// periods was `≤ −vent_flow`, the pressure when the first was issued
+    /// was at least `vent_min_mpa`, and the pressure now is less than
+    /// `vent_fall_mpa` below it → [`Fault::Implausible`]`(`[`Check::Vent`]`)`.
+    ///
+    /// [`Fault::Implausible`]: super::Fault::Implausible
+    /// [`Check::Vent`]: super::Check::Vent
+    pub vent_flow: f32,
+    /// Vent window, control periods; 0 disables the check.
+    pub vent_periods: u16,
+    /// Least pressure fall over the window with the exhaust open, MPa (> 0).
+    pub vent_fall_mpa: f32,
+    /// The vent check applies only from this pressure up, MPa (≥ 0): near
+    /// atmosphere an open exhaust has nothing left to vent.
+    pub vent_min_mpa: f32,
+    /// The model as a virtual sensor: the measured contraction must lie in
+    /// the band between the model's two branches at the measured pressure
+    /// and the active load, `[x_C(p), x_E(p)]` (inverse model, eqs. 25/26),
+    /// widened by this much on each side (fraction of rest length, > 0).
+    /// Outside it for more than `implausible_periods` periods in a row is
+    /// [`Fault::Implausible`]`(`[`Check::Model`]`)`: a contraction sensor
+    /// decoupled from the muscle or offset, or a muscle that does not
+    /// contract as its pressure says (a torn braid, a wrong load).
+    ///
+    /// [`Fault::Implausible`]: super::Fault::Implausible
+    /// [`Check::Model`]: super::Check::Model
+    pub implausible_contraction: f32,
+    /// Mechanical lag the band allows for, s (≥ 0): the contraction follows
+    /// a pressure change with the muscle's and the load's dynamics, so the
+    /// band is taken between the contraction branch at a *lagged minimum*
+    /// of the pressure and the expansion branch at a *lagged maximum*
+    /// (each follows the pressure at once in the direction that widens the
+    /// band and relaxes back with this time constant). 0: no allowance.
+    pub implausible_lag_s: f32,
+    /// The model check pauses for this long after the tracker switches the
+    /// load model, s (≥ 0): a load step moves the muscle along its
+    /// dynamics, with the mass of the new load, onto the new load's loop,
+    /// and until it gets there the new model's band does not hold it.
+    pub implausible_settle_s: f32,
+    /// Periods outside the band before the fault; 0 disables the check.
+    /// Covers the mechanical lag behind a pressure change and the tracker's
+    /// load debounce after a load step (the model is the old load's until
+    /// the tracker switches).
+    pub implausible_periods: u16,
+    /// Consecutive control periods that overran (the next tick arrived
+    /// before the step finished, reported by the image through
+    /// `Controller::record_overrun`) before [`Fault::Overrun`]; 0 disables.
+    ///
+    /// [`Fault::Overrun`]: super::Fault::Overrun
+    pub overrun_limit: u16,
+    /// Latch: more than this many trips (entries into the safe state from
+    /// control) within `latch_window_periods` keep the valves safe until
+    /// an explicit `Controller::reset_latch`; 0 disables the latch.
+    /// What it mitigates: an intermittent fault (a loose connector giving
+    /// one bad sample every few tens of ms) would otherwise cycle the
+    /// muscle between control and vent indefinitely.
+    pub latch_trips: u16,
+    /// The latch's window, control periods (≥ 1): it starts at a trip and
+    /// the count restarts at the first trip after it ends.
+    pub latch_window_periods: u32,
+}
+
+/// Which feedforward the outer loop adds to its PI term.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Feedforward {
+    /// The hysteresis model on the active branch, eqs. (25)/(26): the design.
+    Hysteresis,
+    /// The constraint model alone, eq. (21): no hysteresis compensation
+    /// (for comparison).
+    Constraint,
+    /// None: PI feedback only (for comparison).
+    Off,
+    /// The hysteresis model with pam-core's non-local memory
+    /// ([`pam_core::effects::memory`]): at a reversal inside the loop the
+    /// feedforward follows a minor loop from the turning point back to the
+    /// previous reversal instead of jumping by `2·be` to the other branch
+    /// (the jump the paper's conclusion says non-local memory removes).
+    /// With no reversal remembered it is exactly [`Feedforward::Hysteresis`].
+    ///
+    /// Work per step: [`MEMORY_INVERSE_STEPS`](super::MEMORY_INVERSE_STEPS)
+    /// evaluations of the memory's pressure → contraction curve (each up to
+    /// three table inverses and one `powf`) to invert it, since the memory
+    /// is defined in that direction.
+    HysteresisMemory(NonLocalMemory),
+}
+
+/// Gains, rate and limits of the controller.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControllerConfig {
+    /// Control period, s.
+    pub dt_s: f32,
+    /// Outer loop proportional gain, MPa per unit contraction error.
+    pub kp_mpa: f32,
+    /// Outer loop integral gain, MPa per (unit contraction error · s).
+    pub ki_mpa_per_s: f32,
+    /// Bound on the integral term, MPa.
+    pub integral_limit_mpa: f32,
+    /// Inner loop gain: valve flow command per MPa of pressure error.
+    pub pressure_gain_per_mpa: f32,
+    /// Feedforward model.
+    pub feedforward: Feedforward,
+    /// Mode tracker; its drive signal is the desired contraction, so the
+    /// direction deadband is in contraction units.
+    pub tracker: TrackerConfig,
+    /// Safety monitor.
+    pub safety: SafetyConfig,
+}
+
+impl ControllerConfig {
+    /// 1 kHz, tuned on the simulated muscle of host-sim (a 100–600 N
+    /// McKibben muscle with on/off valves on a 0.6 MPa supply).
+    pub const DEFAULT: ControllerConfig = ControllerConfig {
+        dt_s: 1e-3,
+        kp_mpa: 2.0,
+        ki_mpa_per_s: 20.0,
+        integral_limit_mpa: 0.1,
+        pressure_gain_per_mpa: 20.0,
+        feedforward: Feedforward::Hysteresis,
+        tracker: TrackerConfig {
+            direction_deadband: 0.002,
+            load_threshold_n: 20.0,
+            load_debounce_samples: 5,
+        },
+        safety: SafetyConfig {
+            safe_state: SafeState::Exhaust,
+            pressure_min_mpa: -0.05,
+            pressure_max_mpa: 0.8,
+            contraction_min: -0.05,
+            contraction_max: 0.4,
+            // 5 % of the 100–600 N range of `Params::DEFAULT`; > 15 σ of a
+            // 1.5 N RMS load cell.
+            load_margin_n: 25.0,
+            // Pmax 0.5 + 0.05 MPa: 60 σ of the rig's pressure noise, and
+            // below the 0.6 MPa supply an inlet stuck open reaches.
+            overpressure_margin_mpa: 0.05,
+            stuck_samples: 200,
+            recovery_samples: 50,
+            // 100 ms at 1 kHz: a 1/8" inlet fills the muscle by tenths of
+            // an MPa in that time; 10 kPa is 12 σ of the sensor noise.
+            supply_loss_flow: 0.95,
+            supply_loss_periods: 100,
+            supply_loss_rise_mpa: 0.01,
+            // The same window for the exhaust, from 0.05 MPa up.
+            vent_flow: 0.95,
+            vent_periods: 100,
+            vent_fall_mpa: 0.01,
+            vent_min_mpa: 0.05,
+            // host-sim's rig, 900 s of normal runs (three scenarios, five
+            // seeds): the largest distance outside the band is 0.025; an
+            // offset of 0.05 on the contraction sensor is caught within
+            // 160 ms at 100–600 N (host-sim/README.md).
+            implausible_contraction: 0.035,
+            // The rig's contraction settles within about 50 ms of a step
+            // of the chamber pressure.
+            implausible_lag_s: 0.05,
+            implausible_settle_s: 1.0,
+            implausible_periods: 100,
+            overrun_limit: 3,
+            // A fourth trip within 10 s latches.
+            latch_trips: 3,
+            latch_window_periods: 10_000,
+        },
+    };
+
+    /// Check every field; the first bad one is named.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        let non_negative = |v: f32| v.is_finite() && v >= 0.0;
+        let fraction = |v: f32| v > 0.0 && v <= 1.0;
+        let ordered = |lo: f32, hi: f32| lo.is_finite() && hi.is_finite() && lo < hi;
+        let s = &self.safety;
+        let memory_ok = match &self.feedforward {
+            Feedforward::HysteresisMemory(m) => m.validate().is_ok(),
+            _ => true,
+        };
+        // One row per setting: (holds, setting). The first that fails is named.
+        let rules = [
+            (positive(self.dt_s), Setting::DtS),
+            (non_negative(self.kp_mpa), Setting::KpMpa),
+            (non_negative(self.ki_mpa_per_s), Setting::KiMpaPerS),
+            (
+                non_negative(self.integral_limit_mpa),
+                Setting::IntegralLimitMpa,
+            ),
+            (
+                non_negative(self.pressure_gain_per_mpa),
+                Setting::PressureGainPerMpa,
+            ),
+            (
+                ordered(s.pressure_min_mpa, s.pressure_max_mpa),
+                Setting::PressureRange,
+            ),
+            (
+                ordered(s.contraction_min, s.contraction_max),
+                Setting::ContractionRange,
+            ),
+            (non_negative(s.load_margin_n), Setting::LoadMarginN),
+            (
+                positive(s.overpressure_margin_mpa),
+                Setting::OverpressureMarginMpa,
+            ),
+            (fraction(s.supply_loss_flow), Setting::SupplyLossFlow),
+            (positive(s.supply_loss_rise_mpa), Setting::SupplyLossRiseMpa),
+            (fraction(s.vent_flow), Setting::VentFlow),
+            (positive(s.vent_fall_mpa), Setting::VentFallMpa),
+            (non_negative(s.vent_min_mpa), Setting::VentMinMpa),
+            (
+                positive(s.implausible_contraction),
+                Setting::ImplausibleContraction,
+            ),
+            (non_negative(s.implausible_lag_s), Setting::ImplausibleLagS),
+            (
+                non_negative(s.implausible_settle_s),
+                Setting::ImplausibleSettleS,
+            ),
+            (memory_ok, Setting::MemoryShape),
+            (s.recovery_samples >= 1, Setting::RecoverySamples),
+            (s.latch_window_periods >= 1, Setting::LatchWindowPeriods),
+        ];
+        for (holds, setting) in rules {
+            if !holds {
+                return Err(ConfigError::Invalid(setting));
+            }
+        }
+        self.tracker.validate().map_err(ConfigError::Tracker)
+    }
+}
+
+/// A controller setting, as named by [`ConfigError::Invalid`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Setting {
+    /// `dt_s`: finite and > 0 s.
+    DtS,
+    /// `kp_mpa`: finite and ≥ 0.
+    KpMpa,
+    /// `ki_mpa_per_s`: finite and ≥ 0.
+    KiMpaPerS,
+    /// `integral_limit_mpa`: finite and ≥ 0.
+    IntegralLimitMpa,
+    /// `pressure_gain_per_mpa`: finite and ≥ 0.
+    PressureGainPerMpa,
+    /// `pressure_min_mpa`, `pressure_max_mpa`: finite, min < max.
+    PressureRange,
+    /// `contraction_min`, `contraction_max`: finite, min < max.
+    ContractionRange,
+    /// `load_margin_n`: finite and ≥ 0 N.
+    LoadMarginN,
+    /// `overpressure_margin_mpa`: finite and > 0 MPa.
+    OverpressureMarginMpa,
+    /// `supply_loss_flow`: in (0, 1].
+    SupplyLossFlow,
+    /// `supply_loss_rise_mpa`: finite and > 0 MPa.
+    SupplyLossRiseMpa,
+    /// `vent_flow`: in (0, 1].
+    VentFlow,
+    /// `vent_fall_mpa`: finite and > 0 MPa.
+    VentFallMpa,
+    /// `vent_min_mpa`: finite and ≥ 0 MPa.
+    VentMinMpa,
+    /// `implausible_contraction`: finite and > 0.
+    ImplausibleContraction,
+    /// `implausible_lag_s`: finite and ≥ 0 s.
+    ImplausibleLagS,
+    /// `implausible_settle_s`: finite and ≥ 0 s.
+    ImplausibleSettleS,
+    /// The non-local memory's shape: finite and in [0.05, 50].
+    MemoryShape,
+    /// `recovery_samples`: ≥ 1.
+    RecoverySamples,
+    /// `latch_window_periods`: ≥ 1.
+    LatchWindowPeriods,
+}
+
+impl Setting {
+    /// The field's name in [`ControllerConfig`] / [`SafetyConfig`].
+    pub fn name(self) -> &'static str {
+        match self {
+            Setting::DtS => "dt_s",
+            Setting::KpMpa => "kp_mpa",
+            Setting::KiMpaPerS => "ki_mpa_per_s",
+            Setting::IntegralLimitMpa => "integral_limit_mpa",
+            Setting::PressureGainPerMpa => "pressure_gain_per_mpa",
+            Setting::PressureRange => "pressure_min_mpa",
+            Setting::ContractionRange => "contraction_min",
+            Setting::LoadMarginN => "load_margin_n",
+            Setting::OverpressureMarginMpa => "overpressure_margin_mpa",
+            Setting::SupplyLossFlow => "supply_loss_flow",
+            Setting::SupplyLossRiseMpa => "supply_loss_rise_mpa",
+            Setting::VentFlow => "vent_flow",
+            Setting::VentFallMpa => "vent_fall_mpa",
+            Setting::VentMinMpa => "vent_min_mpa",
+            Setting::ImplausibleContraction => "implausible_contraction",
+            Setting::ImplausibleLagS => "implausible_lag_s",
+            Setting::ImplausibleSettleS => "implausible_settle_s",
+            Setting::MemoryShape => "feedforward",
+            Setting::RecoverySamples => "recovery_samples",
+            Setting::LatchWindowPeriods => "latch_window_periods",
+        }
+    }
+
+    /// What the setting must be.
+    pub fn requirement(self) -> &'static str {
+        match self {
+            Setting::DtS => "must be finite and > 0 s",
+            Setting::KpMpa
+            | Setting::KiMpaPerS
+            | Setting::IntegralLimitMpa
+            | Setting::PressureGainPerMpa => "must be finite and >= 0",
+            Setting::PressureRange => "need finite pressure_min_mpa < pressure_max_mpa",
+            Setting::ContractionRange => "need finite contraction_min < contraction_max",
+            Setting::LoadMarginN => "must be finite and >= 0 N",
+            Setting::OverpressureMarginMpa | Setting::SupplyLossRiseMpa | Setting::VentFallMpa => {
+                "must be finite and > 0 MPa"
+            }
+            Setting::SupplyLossFlow | Setting::VentFlow => "must be in (0, 1]",
+            Setting::VentMinMpa => "must be finite and >= 0 MPa",
+            Setting::ImplausibleLagS | Setting::ImplausibleSettleS => "must be finite and >= 0 s",
+            Setting::ImplausibleContraction => "must be finite and > 0",
+            Setting::MemoryShape => "memory shape must be finite and in [0.05, 50]",
+            Setting::RecoverySamples | Setting::LatchWindowPeriods => "must be >= 1",
+        }
+    }
+}
+
+/// Why a controller (or the hardware set-up around it) could not be built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The coefficient blob or parameter set was refused by pam-core.
+    Coefficients(pam_core::Error),
+    /// The tracker configuration was refused by pam-core.
+    Tracker(pam_core::Error),
+    /// A controller setting is invalid.
+    Invalid(Setting),
+    /// A calibration or valve setting of the hardware layer is invalid.
+    Hal(HalConfigError),
+}
+
+impl From<HalConfigError> for ConfigError {
+    fn from(e: HalConfigError) -> Self {
+        ConfigError::Hal(e)
+    }
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::Coefficients(e) => write!(f, "coefficients refused: {e}"),
+            ConfigError::Tracker(e) => write!(f, "tracker configuration refused: {e}"),
+            ConfigError::Invalid(s) => write!(f, "`{}` {}", s.name(), s.requirement()),
+            ConfigError::Hal(e) => write!(f, "hardware configuration refused: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for ConfigError {}

@@ -1,0 +1,353 @@
+//! The position loop: hysteresis model as feedforward, PI on contraction,
+//! an inner pressure loop to a valve flow command, and the safety monitor.
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`config`] | [`ControllerConfig`], [`SafetyConfig`], their validation, typed [`ConfigError`] |
+//! | [`io`] | [`Io`] (the hardware), [`Sample`], [`ValveCommand`] |
+//! | [`monitor`] | the safety monitor: [`Fault`], the rule table, responses, the model as a virtual sensor, the latch |
+//! | [`law`] | the control law: feedforward, PI with anti-windup, inner pressure loop |
+//!
+//! One [`Controller::step`] per control period (`dt_s`):
+//!
+//! 1. read the pressure, contraction and load sensors ([`Sample::read`]);
+//! 2. check every reading *before anything uses it*: a read error, a
+//!    non-finite value, a reading frozen for more than `stuck_samples`
+//!    samples, a value outside its plausible range, a pressure above
+//!    `Pmax + overpressure_margin_mpa`, a load outside the calibrated range
+//!    of the coefficients by more than `load_margin_n` (within it, clamped
+//!    to the range), or a non-finite set-point is a [`Fault`];
+//! 3. feed pam-core's [`Tracker`] with the *desired* contraction as drive
+//!    signal (noise-free, so the branch switches as the set-point reverses
+//!    instead of a deadband later on a noisy measurement) and the checked
+//!    load (which picks the model of the load family, eqs. 16–21);
+//! 4. check the pressure's response to the last valve command (supply
+//!    loss, a vent that does not vent), overruns, and the measured
+//!    contraction against the model's band at the measured pressure;
+//! 5. feedforward: the pressure that holds the desired contraction on the
+//!    active branch, `HMC` or `HME` of eqs. (25)/(26);
+//! 6. PI on the contraction error, added to the feedforward, clamped to the
+//!    model's pressure range;
+//! 7. inner loop: proportional on the pressure error, to a flow command in
+//!    `[-1, 1]` for the [`Valve`]. Proportional alone suffices there: the
+//!    chamber integrates flow, so a constant pressure needs zero flow and
+//!    the pressure loop has no steady-state error without leaks; leaks are
+//!    taken up by the outer integrator.
+//!
+//! On a fault the valve goes to the configured [`SafeState`] in the same
+//! step (so within one control period of the bad reading), the integrator is
+//! cleared, and control resumes only after `recovery_samples` consecutive
+//! good samples — unless the fault was the `latch_trips + 1`-th trip within
+//! `latch_window_periods`: then the safe state is latched until
+//! [`Controller::reset_latch`].
+//!
+//! # Work per step
+//! Three sensor reads, a fixed number of comparisons, one forward model
+//! evaluation and two inverse evaluations (the plausibility band) and, on
+//! a load switch of the tracker, one [`pam_core::LoadModel`] rebuild. No
+//! allocation, no loops over data, no panicking operation (no indexing by
+//! runtime values, no division by a runtime value other than in `f32`,
+//! which saturates to ±inf or NaN and is clamped).
+
+pub mod config;
+pub mod io;
+pub mod law;
+pub mod monitor;
+#[cfg(test)]
+mod tests;
+
+pub use config::{ConfigError, ControllerConfig, Feedforward, SafetyConfig, Setting};
+pub use io::{Io, Sample, ValveCommand};
+pub use law::{MEMORY_DEPTH, MEMORY_INVERSE_STEPS};
+pub use monitor::{Check, Fault, SensorId};
+
+use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, Valve};
+use law::Law;
+use monitor::Monitor;
+use pam_core::{Branch, Coeffs, Tracker, Update};
+
+/// What one step did; the firmware logs `new_fault` and `recovered`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Step {
+    /// The active fault (valves safe), if any.
+    pub fault: Option<Fault>,
+    /// A fault that began (or changed) on this step.
+    pub new_fault: Option<Fault>,
+    /// The controller left the safe state on this step.
+    pub recovered: bool,
+    /// The safe state is latched (until [`Controller::reset_latch`]).
+    pub latched: bool,
+    /// Branch of the active model.
+    pub branch: Branch,
+    /// Feedforward pressure from the hysteresis model, MPa (0 in a fault).
+    pub feedforward_mpa: f32,
+    /// Pressure set-point of the inner loop, MPa (0 in a fault).
+    pub pressure_cmd_mpa: f32,
+    /// What the valve was told.
+    pub command: ValveCommand,
+    /// What the mode tracker did (nothing on a step whose readings faulted:
+    /// the tracker sees only checked readings).
+    pub tracker: Update,
+    /// How far the measured contraction lay outside the model's band at the
+    /// measured pressure, before the bound `implausible_contraction` (0
+    /// inside the band, or when the check did not run: in a fault).
+    pub model_excess: f32,
+}
+
+/// The position controller: coefficients, configuration, mode tracker, the
+/// law's state and the monitor's; no references.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    coeffs: Coeffs,
+    config: ControllerConfig,
+    tracker: Tracker,
+    law: Law,
+    monitor: Monitor,
+    fault: Option<Fault>,
+    good_run: u16,
+    /// `ki_mpa_per_s · dt_s`, computed once.
+    ki_dt: f32,
+    /// Updates since construction (wrapping), for the latch window.
+    period: u32,
+}
+
+impl Controller {
+    /// A controller for validated coefficients, starting on the contraction
+    /// branch with the model at `initial_load_n` (clamped to the calibrated
+    /// range).
+    pub fn new(
+        coeffs: Coeffs,
+        config: ControllerConfig,
+        initial_load_n: f32,
+    ) -> Result<Controller, ConfigError> {
+        config.validate()?;
+        let tracker = Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
+            .map_err(ConfigError::Tracker)?;
+        Ok(Controller {
+            monitor: Monitor::new(&config.safety, &coeffs, config.dt_s),
+            ki_dt: config.ki_mpa_per_s * config.dt_s,
+            coeffs,
+            config,
+            tracker,
+            law: Law::default(),
+            fault: None,
+            good_run: 0,
+            period: 0,
+        })
+    }
+
+    /// A controller from a coefficient blob in pam-core's format
+    /// ([`pam_core::blob`]: magic, version, length, CRC-32, then the
+    /// parameters are validated). A blob that fails any check is refused.
+    pub fn from_blob(
+        blob: &[u8],
+        config: ControllerConfig,
+        initial_load_n: f32,
+    ) -> Result<Controller, ConfigError> {
+        let coeffs = pam_core::blob::decode(blob).map_err(ConfigError::Coefficients)?;
+        Controller::new(coeffs, config, initial_load_n)
+    }
+
+    /// The coefficients.
+    pub fn coeffs(&self) -> &Coeffs {
+        &self.coeffs
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// The mode tracker (active branch and load model).
+    pub fn tracker(&self) -> &Tracker {
+        &self.tracker
+    }
+
+    /// The active fault; `None` while controlling.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// Whether the safe state is latched.
+    pub fn latched(&self) -> bool {
+        self.monitor.latched()
+    }
+
+    /// The outer loop's integral term, MPa.
+    pub fn integral_mpa(&self) -> f32 {
+        self.law.integral_mpa
+    }
+
+    /// Enter the safe state latched with `fault`, without a step: for boot
+    /// after a reset that must not resume control on its own (the board
+    /// image does this after an independent-watchdog reset). The caller has
+    /// already put the valves safe; every step from now on commands the
+    /// safe state until [`reset_latch`](Self::reset_latch).
+    pub fn latch(&mut self, fault: Fault) {
+        self.fault = Some(fault);
+        self.good_run = 0;
+        self.law.reset();
+        self.monitor.went_safe();
+        self.monitor.latch();
+    }
+
+    /// The operator's reset of a latched safe state: the latch and its trip
+    /// count are cleared, and control resumes after `recovery_samples` good
+    /// samples from here (the valves stay safe until then).
+    pub fn reset_latch(&mut self) {
+        self.monitor.reset_latch();
+        self.good_run = 0;
+    }
+
+    /// Report whether the control period that just ended overran (the next
+    /// tick arrived before its step finished). `overrun_limit` overruns in
+    /// a row are [`Fault::Overrun`] at the next step.
+    pub fn record_overrun(&mut self, overran: bool) {
+        self.monitor.record_overrun(overran);
+    }
+
+    /// One control period: read the sensors, compute, drive the valve.
+    ///
+    /// If the valve refuses the write, the fault is [`Fault::Valve`] and the
+    /// safe state is written once more (best effort).
+    pub fn step<P, X, L, V>(&mut self, io: &mut Io<P, X, L, V>, desired_contraction: f32) -> Step
+    where
+        P: PressureSensor,
+        X: ContractionSensor,
+        L: LoadCell,
+        V: Valve,
+    {
+        let sample = Sample::read(&mut io.pressure, &mut io.contraction, &mut io.load);
+        let mut step = self.update_inline(&sample, desired_contraction);
+        let written = match step.command {
+            ValveCommand::Flow(c) => io.valve.set_flow(c),
+            ValveCommand::Safe(s) => io.valve.set_safe(s),
+        };
+        if written.is_err() {
+            let safe = self.config.safety.safe_state;
+            self.enter_fault(Fault::Valve, &mut step);
+            step.recovered = false;
+            // The driver just refused a write; retry the safe state once and
+            // stay faulted whatever it returns (the next step retries again).
+            let _ = io.valve.set_safe(safe);
+        }
+        step
+    }
+
+    /// The computation of one step on a given sample, without I/O: returns
+    /// the valve command to apply. [`step`](Self::step) is `Sample::read`,
+    /// this, and the valve write.
+    pub fn update(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
+        self.update_inline(sample, desired_contraction)
+    }
+
+    /// [`update`](Self::update), inlined into [`step`](Self::step) so that
+    /// the sample is not stored to memory and read back, and the step is
+    /// built in place.
+    #[inline(always)]
+    fn update_inline(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
+        self.period = self.period.wrapping_add(1);
+        let mut step = Step {
+            fault: None,
+            new_fault: None,
+            recovered: false,
+            latched: self.monitor.latched(),
+            branch: self.tracker.branch(),
+            feedforward_mpa: 0.0,
+            pressure_cmd_mpa: 0.0,
+            command: ValveCommand::Safe(self.config.safety.safe_state),
+            tracker: Update::default(),
+            model_excess: 0.0,
+        };
+        // 2. The readings, before the tracker or the law sees them.
+        if let Some(f) = self.monitor.check(sample, desired_contraction) {
+            self.enter_fault(f, &mut step);
+            return step;
+        }
+        // `check` passed, so all three are finite and in range.
+        let (pressure_mpa, contraction, load_n) =
+            match (sample.pressure_mpa, sample.contraction, sample.load_n) {
+                (Ok(p), Ok(x), Ok(l)) => (p, x, l),
+                _ => return step,
+            };
+        // 3. The tracker.
+        step.tracker = self
+            .tracker
+            .update(&self.coeffs, desired_contraction, load_n);
+        if step.tracker.load_switch.is_some() {
+            self.law.load_switched();
+            self.monitor.load_switched();
+        }
+        step.branch = self.tracker.branch();
+        // 4. Responses, timing, and (while controlling) the model.
+        if let Some(f) = self.monitor.check_response(pressure_mpa) {
+            self.enter_fault(f, &mut step);
+            return step;
+        }
+        let (excess, fault) = self.monitor.check_model(
+            self.tracker.model(),
+            pressure_mpa,
+            contraction,
+            self.fault.is_none(),
+        );
+        step.model_excess = excess;
+        if let Some(f) = fault {
+            self.enter_fault(f, &mut step);
+            return step;
+        }
+        if let Some(f) = self.fault {
+            step.fault = Some(f);
+            if self.monitor.latched() {
+                return step;
+            }
+            self.good_run = self.good_run.saturating_add(1);
+            if self.good_run < self.config.safety.recovery_samples {
+                return step;
+            }
+            self.fault = None;
+            self.good_run = 0;
+            step.fault = None;
+            step.recovered = true;
+        }
+        // 5.–7. The law.
+        let c = self.law.command(
+            &self.config,
+            self.ki_dt,
+            self.tracker.model(),
+            self.tracker.branch(),
+            step.tracker.branch_switch.is_some(),
+            desired_contraction,
+            pressure_mpa,
+            contraction,
+        );
+        step.feedforward_mpa = c.feedforward_mpa;
+        step.pressure_cmd_mpa = c.pressure_cmd_mpa;
+        step.command = ValveCommand::Flow(c.flow);
+        self.monitor.last_flow = c.flow;
+        step
+    }
+
+    fn enter_fault(&mut self, fault: Fault, step: &mut Step) {
+        if self.fault.is_none() {
+            // A trip: control → safe state.
+            self.monitor.trip(self.period);
+        }
+        if self.fault != Some(fault) {
+            step.new_fault = Some(fault);
+        }
+        self.fault = Some(fault);
+        self.good_run = 0;
+        self.law.reset();
+        self.monitor.went_safe();
+        step.fault = Some(fault);
+        step.latched = self.monitor.latched();
+        step.feedforward_mpa = 0.0;
+        step.pressure_cmd_mpa = 0.0;
+        step.command = ValveCommand::Safe(self.safe_state());
+    }
+
+    fn safe_state(&self) -> SafeState {
+        self.config.safety.safe_state
+    }
+}

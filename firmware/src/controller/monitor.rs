@@ -1,0 +1,565 @@
+//! The safety monitor: what makes a [`Fault`], checked every period.
+//!
+//! * **Readings**, before anything else sees them (the mode tracker, the
+//!   law): one rule per sensor in a table ([`Rule`]), used both by the fast
+//!   path (every reading read fine and lies inside its range) and by the
+//!   full check that names the first fault; the table is built once from
+//!   the configuration and the coefficients. Per reading, in order: read
+//!   error, non-finite, stuck, outside the plausible range, above the
+//!   safe limit (the pressure's is `Pmax + overpressure_margin_mpa`).
+//! * **Responses** of the pressure to the valve command ([`ResponseRule`]):
+//!   inlet open without a rise ([`Fault::SupplyLoss`]), exhaust open
+//!   without a fall ([`Fault::Implausible`]`(`[`Check::Vent`]`)`).
+//! * **The model as a virtual sensor**: the measured contraction against
+//!   the band between the model's branches at the measured pressure
+//!   ([`Fault::Implausible`]`(`[`Check::Model`]`)`).
+//! * **Timing**: consecutive overruns reported by the image
+//!   ([`Fault::Overrun`]).
+//! * **Latch**: more than `latch_trips` trips within the window keep the
+//!   valves safe until an explicit reset.
+
+use super::config::SafetyConfig;
+use super::io::Sample;
+use crate::hal::SensorErrorKind;
+use pam_core::{Branch, Coeffs, LoadModel};
+
+/// Which sensor a [`Fault`] concerns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SensorId {
+    /// The pressure transducer.
+    Pressure,
+    /// The contraction (position) sensor.
+    Contraction,
+    /// The load cell.
+    Load,
+}
+
+/// Which plausibility check found the readings inconsistent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Check {
+    /// The measured contraction is outside the model's band at the measured
+    /// pressure and load ([`SafetyConfig::implausible_contraction`]).
+    Model,
+    /// The exhaust was commanded open and the pressure did not fall
+    /// ([`SafetyConfig::vent_flow`]).
+    Vent,
+}
+
+/// Why the controller put the valves in the safe state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Fault {
+    /// A sensor read failed.
+    Read {
+        /// Which sensor.
+        sensor: SensorId,
+        /// How it failed.
+        kind: SensorErrorKind,
+    },
+    /// A sensor returned NaN or an infinity.
+    NonFinite(SensorId),
+    /// A reading is outside its plausible range ([`SafetyConfig`]); for the
+    /// load, outside the calibrated range of the coefficients by more than
+    /// `load_margin_n`.
+    OutOfRange(SensorId),
+    /// A reading was bit-for-bit identical for more than `stuck_samples`
+    /// samples: a frozen converter or a disconnected line held by a filter.
+    Stuck(SensorId),
+    /// The desired contraction is not finite.
+    Setpoint,
+    /// The valve driver refused a duty.
+    Valve,
+    /// The inlet was commanded (nearly) fully open for
+    /// `supply_loss_periods` periods and the pressure did not rise by
+    /// `supply_loss_rise_mpa`: no supply pressure (compressor off, hose
+    /// off, regulator closed) or a supply too low for the command.
+    SupplyLoss,
+    /// The chamber pressure is above `Pmax + overpressure_margin_mpa`.
+    OverPressure,
+    /// The readings disagree with the model or with the valve command.
+    Implausible(Check),
+    /// `overrun_limit` control periods in a row overran.
+    Overrun,
+    /// The image was reset by the independent watchdog (a stalled control
+    /// loop); set at boot with [`Controller::latch`](super::Controller::latch).
+    Watchdog,
+}
+
+impl core::fmt::Display for SensorId {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            SensorId::Pressure => "pressure",
+            SensorId::Contraction => "contraction",
+            SensorId::Load => "load",
+        })
+    }
+}
+
+impl core::fmt::Display for Fault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Fault::Read { sensor, kind } => write!(f, "{sensor} sensor read failed: {kind}"),
+            Fault::NonFinite(s) => write!(f, "{s} reading not finite"),
+            Fault::OutOfRange(s) => write!(f, "{s} reading out of range"),
+            Fault::Stuck(s) => write!(f, "{s} reading stuck"),
+            Fault::Setpoint => f.write_str("set-point not finite"),
+            Fault::Valve => f.write_str("valve driver refused a duty"),
+            Fault::SupplyLoss => f.write_str("inlet open but pressure not rising: supply lost"),
+            Fault::OverPressure => f.write_str("chamber pressure above Pmax + margin"),
+            Fault::Implausible(Check::Model) => {
+                f.write_str("contraction disagrees with the model at the measured pressure")
+            }
+            Fault::Implausible(Check::Vent) => f.write_str("exhaust open but pressure not falling"),
+            Fault::Overrun => f.write_str("control periods overran in a row"),
+            Fault::Watchdog => f.write_str("reset by the independent watchdog"),
+        }
+    }
+}
+
+/// One sensor's row of the rule table.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Rule {
+    sensor: SensorId,
+    /// Plausible range, finite bounds.
+    lo: f32,
+    hi: f32,
+    /// Safe limit within the range; above it is `over_limit`.
+    limit: f32,
+    over_limit: Fault,
+    /// `min(hi, limit)`: the fast path's upper bound.
+    fast_hi: f32,
+}
+
+impl Rule {
+    fn new(sensor: SensorId, lo: f32, hi: f32, limit: f32, over_limit: Fault) -> Rule {
+        // Each bound limited to the finite floats, so an infinite reading is
+        // never inside.
+        let (lo, hi) = (
+            super::law::clamp(lo, f32::MIN, f32::MAX),
+            super::law::clamp(hi, f32::MIN, f32::MAX),
+        );
+        let limit = super::law::clamp(limit, f32::MIN, hi);
+        Rule {
+            sensor,
+            lo,
+            hi,
+            limit,
+            over_limit,
+            fast_hi: limit,
+        }
+    }
+
+    /// The full check of one reading, in the order of the module docs; the
+    /// stuck counter observes every finite reading.
+    fn check(
+        &self,
+        reading: Result<f32, SensorErrorKind>,
+        stuck: &mut StuckMonitor,
+        stuck_limit: u16,
+    ) -> Option<Fault> {
+        let sensor = self.sensor;
+        let v = match reading {
+            Ok(v) => v,
+            Err(kind) => return Some(Fault::Read { sensor, kind }),
+        };
+        if !v.is_finite() {
+            return Some(Fault::NonFinite(sensor));
+        }
+        if stuck.observe(v, stuck_limit) {
+            return Some(Fault::Stuck(sensor));
+        }
+        if !(v >= self.lo && v <= self.hi) {
+            return Some(Fault::OutOfRange(sensor));
+        }
+        if v > self.limit {
+            return Some(self.over_limit);
+        }
+        None
+    }
+}
+
+/// Consecutive identical readings of one sensor.
+#[derive(Clone, Copy, Debug)]
+struct StuckMonitor {
+    /// Bits of the last finite reading; a NaN pattern before the first one
+    /// (only finite readings are observed, so it never matches).
+    last_bits: u32,
+    repeats: u16,
+}
+
+impl Default for StuckMonitor {
+    fn default() -> Self {
+        StuckMonitor {
+            last_bits: f32::NAN.to_bits(),
+            repeats: 0,
+        }
+    }
+}
+
+impl StuckMonitor {
+    /// Record the finite `v`; true when it has repeated more than `limit`
+    /// times (`u16::MAX` for a disabled check, which the saturating count
+    /// never exceeds).
+    #[inline(always)]
+    fn observe(&mut self, v: f32, limit: u16) -> bool {
+        let bits = v.to_bits();
+        if self.last_bits == bits {
+            self.repeats = self.repeats.saturating_add(1);
+        } else {
+            self.last_bits = bits;
+            self.repeats = 0;
+        }
+        self.repeats > limit
+    }
+}
+
+/// A rule on the pressure's response to a saturated valve command: the
+/// command `sign · flow ≥ flow` for `periods` periods, starting at a
+/// pressure `≥ min_start_mpa`, and the pressure moved by less than
+/// `change_mpa` in the direction `sign` since the start.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ResponseRule {
+    sign: f32,
+    flow: f32,
+    periods: u16,
+    change_mpa: f32,
+    min_start_mpa: f32,
+}
+
+/// The state of one [`ResponseRule`].
+#[derive(Clone, Copy, Debug, Default)]
+struct Response {
+    /// Consecutive periods with the command saturated, counting this one.
+    periods: u16,
+    /// Pressure read when the first of them was issued, MPa.
+    start_mpa: f32,
+}
+
+impl Response {
+    /// `flow_before` is the command issued by the previous update,
+    /// `before_mpa` the pressure it read, `now_mpa` the pressure now.
+    fn observe(
+        &mut self,
+        r: &ResponseRule,
+        flow_before: f32,
+        before_mpa: f32,
+        now_mpa: f32,
+    ) -> bool {
+        if r.periods == 0 || !(flow_before * r.sign >= r.flow) {
+            self.periods = 0;
+            return false;
+        }
+        if self.periods == 0 {
+            self.start_mpa = before_mpa;
+        }
+        if !(self.start_mpa >= r.min_start_mpa) {
+            self.periods = 0;
+            return false;
+        }
+        self.periods = self.periods.saturating_add(1);
+        if (now_mpa - self.start_mpa) * r.sign >= r.change_mpa {
+            // Responding: restart the window from here.
+            self.periods = 0;
+            return false;
+        }
+        self.periods >= r.periods
+    }
+}
+
+/// Trips counted for the latch.
+#[derive(Clone, Copy, Debug, Default)]
+struct Latch {
+    latched: bool,
+    trips: u16,
+    window_start: u32,
+}
+
+/// The monitor's configuration-derived tables and its state.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Monitor {
+    rules: [Rule; 3],
+    stuck_limit: u16,
+    stuck: [StuckMonitor; 3],
+    supply_rule: ResponseRule,
+    vent_rule: ResponseRule,
+    supply: Response,
+    vent: Response,
+    /// Flow command issued by the last update (0 after a safe state).
+    pub last_flow: f32,
+    /// Pressure read by the last good update, MPa.
+    last_mpa: f32,
+    band: f32,
+    /// Per-period relaxation of the pressure envelope, `dt_s / lag` in [0, 1].
+    envelope_gain: f32,
+    /// Lagged minimum and maximum of the pressure, MPa (NaN before the
+    /// first good sample).
+    envelope_lo_mpa: f32,
+    envelope_hi_mpa: f32,
+    implausible_periods: u16,
+    outside: u16,
+    /// Periods the model check pauses after a load switch, and how many
+    /// of them are left.
+    settle_periods: u16,
+    settling: u16,
+    overrun_limit: u16,
+    overruns: u16,
+    latch_trips: u16,
+    latch_window: u32,
+    latch: Latch,
+}
+
+impl Monitor {
+    /// The rule table for `s` and the coefficients' calibrated load range
+    /// and `Pmax`.
+    pub fn new(s: &SafetyConfig, coeffs: &Coeffs, dt_s: f32) -> Monitor {
+        use SensorId::*;
+        let p = coeffs.params();
+        let pmax = p.points.max_pressure_mpa;
+        let load_lo = p.min_load_n - s.load_margin_n;
+        let load_hi = p.max_load_n + s.load_margin_n;
+        Monitor {
+            rules: [
+                Rule::new(
+                    Pressure,
+                    s.pressure_min_mpa,
+                    s.pressure_max_mpa,
+                    pmax + s.overpressure_margin_mpa,
+                    Fault::OverPressure,
+                ),
+                Rule::new(
+                    Contraction,
+                    s.contraction_min,
+                    s.contraction_max,
+                    s.contraction_max,
+                    Fault::OutOfRange(Contraction),
+                ),
+                // The load's plausible range is the calibrated range of the
+                // model family widened by the margin; inside the margin the
+                // tracker clamps the load to the calibrated range.
+                Rule::new(Load, load_lo, load_hi, load_hi, Fault::OutOfRange(Load)),
+            ],
+            stuck_limit: if s.stuck_samples == 0 {
+                u16::MAX
+            } else {
+                s.stuck_samples
+            },
+            stuck: [StuckMonitor::default(); 3],
+            supply_rule: ResponseRule {
+                sign: 1.0,
+                flow: s.supply_loss_flow,
+                periods: s.supply_loss_periods,
+                change_mpa: s.supply_loss_rise_mpa,
+                min_start_mpa: f32::NEG_INFINITY,
+            },
+            vent_rule: ResponseRule {
+                sign: -1.0,
+                flow: s.vent_flow,
+                periods: s.vent_periods,
+                change_mpa: s.vent_fall_mpa,
+                min_start_mpa: s.vent_min_mpa,
+            },
+            supply: Response::default(),
+            vent: Response::default(),
+            last_flow: 0.0,
+            last_mpa: 0.0,
+            band: s.implausible_contraction,
+            envelope_gain: if s.implausible_lag_s > dt_s {
+                dt_s / s.implausible_lag_s
+            } else {
+                1.0
+            },
+            envelope_lo_mpa: f32::NAN,
+            envelope_hi_mpa: f32::NAN,
+            implausible_periods: s.implausible_periods,
+            outside: 0,
+            // `as` saturates (and a NaN, excluded by validation, gives 0).
+            settle_periods: (s.implausible_settle_s / dt_s + 0.5) as u16,
+            settling: 0,
+            overrun_limit: s.overrun_limit,
+            overruns: 0,
+            latch_trips: s.latch_trips,
+            latch_window: s.latch_window_periods,
+            latch: Latch::default(),
+        }
+    }
+
+    /// The first fault in this sample's readings and set-point, in the order
+    /// pressure, contraction, load, set-point. Every sensor is checked every
+    /// step so that each stuck counter sees every sample.
+    ///
+    /// Fast path: every read succeeded and every reading is inside its
+    /// rule's `[lo, fast_hi]` (finite bounds, so the reading is finite too)
+    /// and the set-point is finite: only stuck readings remain possible.
+    /// Anything else goes to [`check_full`](Self::check_full), which walks
+    /// the same table and names the first fault.
+    #[inline(always)]
+    pub fn check(&mut self, sample: &Sample, desired_contraction: f32) -> Option<Fault> {
+        let readings = sample.readings();
+        let inside = readings
+            .iter()
+            .zip(&self.rules)
+            .all(|(r, rule)| matches!(r, Ok(v) if *v >= rule.lo && *v <= rule.fast_hi));
+        if inside && desired_contraction.is_finite() {
+            let mut first = None;
+            for ((r, rule), stuck) in readings.iter().zip(&self.rules).zip(&mut self.stuck) {
+                if let Ok(v) = r {
+                    if stuck.observe(*v, self.stuck_limit) && first.is_none() {
+                        first = Some(Fault::Stuck(rule.sensor));
+                    }
+                }
+            }
+            return first;
+        }
+        self.check_full(&readings, desired_contraction)
+    }
+
+    /// Every check of every reading, in order (the path of a bad sample).
+    #[cold]
+    #[inline(never)]
+    pub(super) fn check_full(
+        &mut self,
+        readings: &[Result<f32, SensorErrorKind>; 3],
+        desired_contraction: f32,
+    ) -> Option<Fault> {
+        let mut first = None;
+        for ((r, rule), stuck) in readings.iter().zip(&self.rules).zip(&mut self.stuck) {
+            let f = rule.check(*r, stuck, self.stuck_limit);
+            first = first.or(f);
+        }
+        first.or((!desired_contraction.is_finite()).then_some(Fault::Setpoint))
+    }
+
+    /// The checks on good readings that need the loop's history: the
+    /// pressure's response to the last command, and overruns.
+    #[inline(always)]
+    pub fn check_response(&mut self, pressure_mpa: f32) -> Option<Fault> {
+        let before = self.last_mpa;
+        self.last_mpa = pressure_mpa;
+        let flow = self.last_flow;
+        let no_rise = self
+            .supply
+            .observe(&self.supply_rule, flow, before, pressure_mpa);
+        let no_fall = self
+            .vent
+            .observe(&self.vent_rule, flow, before, pressure_mpa);
+        if no_rise {
+            Some(Fault::SupplyLoss)
+        } else if no_fall {
+            Some(Fault::Implausible(Check::Vent))
+        } else if self.overrun_limit > 0 && self.overruns >= self.overrun_limit {
+            Some(Fault::Overrun)
+        } else {
+            None
+        }
+    }
+
+    /// The model as a virtual sensor: how far `contraction` lies outside
+    /// the band `[x_C(p_lo), x_E(p_hi)]` of `model`, with `p_lo`, `p_hi`
+    /// the lagged minimum and maximum of the pressure (0 inside), and
+    /// whether it has been beyond the band by more than the bound for
+    /// `implausible_periods` periods in a row. The envelope follows every
+    /// good sample; the count only runs while `controlling`.
+    #[inline(always)]
+    pub fn check_model(
+        &mut self,
+        model: &LoadModel,
+        pressure_mpa: f32,
+        contraction: f32,
+        controlling: bool,
+    ) -> (f32, Option<Fault>) {
+        let g = self.envelope_gain;
+        let (lo, hi) = (self.envelope_lo_mpa, self.envelope_hi_mpa);
+        // Follow at once outward (NaN: the first sample), relax inward.
+        self.envelope_lo_mpa = if lo <= pressure_mpa {
+            lo + g * (pressure_mpa - lo)
+        } else {
+            pressure_mpa
+        };
+        self.envelope_hi_mpa = if hi >= pressure_mpa {
+            hi + g * (pressure_mpa - hi)
+        } else {
+            pressure_mpa
+        };
+        if self.implausible_periods == 0 || !controlling || self.settling > 0 {
+            self.settling = self.settling.saturating_sub(1);
+            self.outside = 0;
+            return (0.0, None);
+        }
+        // Inverse model, eqs. (25)/(26): the contraction each branch has at
+        // a pressure. At one pressure the expansion branch is the longer
+        // contraction (HME = HMC − 2·y_hys), so the two bound the loop and
+        // every minor loop inside it.
+        let a = model.contraction(self.envelope_lo_mpa, Branch::Contraction);
+        let b = model.contraction(self.envelope_hi_mpa, Branch::Expansion);
+        let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+        let excess = if contraction < lo {
+            lo - contraction
+        } else if contraction > hi {
+            contraction - hi
+        } else {
+            0.0
+        };
+        if excess > self.band {
+            self.outside = self.outside.saturating_add(1);
+        } else {
+            self.outside = 0;
+        }
+        let fault =
+            (self.outside >= self.implausible_periods).then_some(Fault::Implausible(Check::Model));
+        (excess, fault)
+    }
+
+    /// The tracker switched the load model: pause the model check.
+    pub fn load_switched(&mut self) {
+        self.settling = self.settle_periods;
+    }
+
+    /// Record whether the last period overran.
+    pub fn record_overrun(&mut self, overran: bool) {
+        self.overruns = if overran {
+            self.overruns.saturating_add(1)
+        } else {
+            0
+        };
+    }
+
+    /// The valves went safe: no flow commanded, the windows restart.
+    pub fn went_safe(&mut self) {
+        self.last_flow = 0.0;
+        self.supply.periods = 0;
+        self.vent.periods = 0;
+        self.outside = 0;
+    }
+
+    /// A trip (control → safe state) at period `now`; latches on more than
+    /// `latch_trips` trips within the window.
+    pub fn trip(&mut self, now: u32) {
+        let l = &mut self.latch;
+        if l.trips == 0 || now.wrapping_sub(l.window_start) >= self.latch_window {
+            l.window_start = now;
+            l.trips = 0;
+        }
+        l.trips = l.trips.saturating_add(1);
+        if self.latch_trips > 0 && l.trips > self.latch_trips {
+            l.latched = true;
+        }
+    }
+
+    /// Whether the safe state is latched.
+    pub fn latched(&self) -> bool {
+        self.latch.latched
+    }
+
+    /// Latch now (boot after a watchdog reset).
+    pub fn latch(&mut self) {
+        self.latch.latched = true;
+    }
+
+    /// The operator's reset: the latch and its trip count are cleared.
+    pub fn reset_latch(&mut self) {
+        self.latch = Latch::default();
+    }
+}

@@ -1,0 +1,984 @@
+//! Unit tests of the controller: law, monitor, configuration.
+
+use super::*;
+use crate::hal::SensorErrorKind;
+use pam_core::effects::NonLocalMemory;
+use pam_core::Params;
+
+fn controller() -> Controller {
+    controller_with(no_model())
+}
+
+/// [`ControllerConfig::DEFAULT`] without the model check: these tests feed
+/// synthetic samples, not a muscle (the check has its own tests).
+fn no_model() -> ControllerConfig {
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.implausible_periods = 0;
+    cfg
+}
+
+fn controller_with(config: ControllerConfig) -> Controller {
+    Controller::new(Coeffs::new(Params::DEFAULT).unwrap(), config, 200.0).unwrap()
+}
+
+/// Constant readings for many samples, without tripping the stuck check
+/// or (no plant: the pressure does not follow the valve) the supply check.
+fn no_stuck_check() -> Controller {
+    controller_with(synthetic())
+}
+
+/// [`ControllerConfig::DEFAULT`] for synthetic samples: stuck and
+/// supply-loss, vent and model checks off.
+fn synthetic() -> ControllerConfig {
+    let mut cfg = no_model();
+    cfg.safety.stuck_samples = 0;
+    cfg.safety.supply_loss_periods = 0;
+    cfg.safety.vent_periods = 0;
+    cfg
+}
+
+fn good(pressure_mpa: f32, contraction: f32, load_n: f32) -> Sample {
+    Sample {
+        pressure_mpa: Ok(pressure_mpa),
+        contraction: Ok(contraction),
+        load_n: Ok(load_n),
+    }
+}
+
+#[test]
+fn at_the_set_point_the_command_is_the_branch_feedforward() {
+    let mut c = controller();
+    let model = c.tracker().model().clone();
+    let x = 0.12;
+    let ff = model.pressure_mpa(x, Branch::Contraction);
+    let s = c.update(&good(ff, x, 200.0), x);
+    assert_eq!(s.fault, None);
+    assert_eq!(s.branch, Branch::Contraction);
+    assert!((s.feedforward_mpa - ff).abs() < 1e-6);
+    assert!((s.pressure_cmd_mpa - ff).abs() < 1e-6);
+    assert_eq!(s.command, ValveCommand::Flow(0.0));
+}
+
+#[test]
+fn feedforward_follows_the_branch_of_the_set_point() {
+    let mut c = no_stuck_check();
+    let x = 0.12;
+    let mut last = c.update(&good(0.2, x, 200.0), x);
+    // Rise to 0.15, then fall back to 0.12: the branch turns to expansion
+    // and the feedforward at 0.12 drops by twice the ellipse offset.
+    let mut sp = x;
+    while sp < 0.15 {
+        sp += 1e-4;
+        last = c.update(&good(0.2 + sp * 1e-3, sp, 200.0), sp);
+    }
+    assert_eq!(last.branch, Branch::Contraction);
+    let up = c.tracker().model().pressure_mpa(x, Branch::Contraction);
+    while sp > x {
+        sp -= 1e-4;
+        last = c.update(&good(0.2 - sp * 1e-3, sp, 200.0), sp);
+    }
+    assert_eq!(last.branch, Branch::Expansion);
+    let m = c.tracker().model();
+    let expected = up - 2.0 * m.offset_mpa(sp);
+    assert!(
+        (last.feedforward_mpa - m.pressure_mpa(sp, Branch::Expansion)).abs() < 1e-6
+            && (last.feedforward_mpa - expected).abs() < 1e-3,
+        "{} vs {expected}",
+        last.feedforward_mpa
+    );
+}
+
+#[test]
+fn pi_pushes_toward_the_set_point_and_the_inner_loop_toward_the_pressure() {
+    let mut c = controller();
+    // Muscle short of the set-point: more pressure, valve fills.
+    let s = c.update(&good(0.1, 0.08, 200.0), 0.12);
+    assert!(s.pressure_cmd_mpa > s.feedforward_mpa);
+    assert!(matches!(s.command, ValveCommand::Flow(f) if f > 0.0));
+    assert!(c.integral_mpa() > 0.0);
+    // Pressure above the command: valve vents.
+    let s = c.update(&good(0.45, 0.12, 200.0), 0.12);
+    assert!(matches!(s.command, ValveCommand::Flow(f) if f < 0.0));
+}
+
+#[test]
+fn integrator_is_bounded_and_does_not_wind_up_in_saturation() {
+    let mut c = no_stuck_check();
+    // Set-point beyond reach: the command saturates at Pmax and the
+    // integrator stops growing.
+    for _ in 0..100_000 {
+        let s = c.update(&good(0.5, 0.0, 200.0), 0.2);
+        assert_eq!(s.fault, None);
+        assert!(s.pressure_cmd_mpa <= Params::DEFAULT.points.max_pressure_mpa);
+    }
+    let held = c.integral_mpa();
+    assert!(
+        held < ControllerConfig::DEFAULT.integral_limit_mpa,
+        "{held}"
+    );
+    // A small error unsaturated: bounded by the limit.
+    let mut c = no_stuck_check();
+    for _ in 0..100_000 {
+        assert_eq!(c.update(&good(0.2, 0.119, 200.0), 0.12).fault, None);
+    }
+    assert!(c.integral_mpa() <= ControllerConfig::DEFAULT.integral_limit_mpa);
+    assert!(c.integral_mpa() > 0.0);
+}
+
+#[test]
+fn set_point_outside_the_stroke_is_clamped() {
+    let mut c = controller();
+    let m = c.tracker().model().clone();
+    let s = c.update(&good(0.5, m.max_contraction(), 200.0), 5.0);
+    assert_eq!(s.fault, None);
+    assert!((s.feedforward_mpa - m.max_pressure_mpa()).abs() < 1e-6);
+}
+
+fn faults_then_recovers(bad: Sample, expected: Fault) {
+    let mut c = controller();
+    let ok = good(0.2, 0.1, 200.0);
+    c.update(&ok, 0.1);
+    let s = c.update(&bad, 0.1);
+    assert_eq!(s.fault, Some(expected));
+    assert_eq!(s.new_fault, Some(expected));
+    assert_eq!(s.command, ValveCommand::Safe(SafeState::Exhaust));
+    assert_eq!(c.integral_mpa(), 0.0);
+    let s = c.update(&bad, 0.1);
+    assert_eq!(s.new_fault, None, "reported once");
+    let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+    for k in 1..n {
+        // Alternate the readings slightly so nothing looks stuck.
+        let x = 0.1 + f32::from(k % 2) * 1e-4;
+        let s = c.update(&good(0.2, x, 200.0), 0.1);
+        assert_eq!(s.command, ValveCommand::Safe(SafeState::Exhaust), "{k}");
+        assert!(!s.recovered);
+    }
+    let s = c.update(&ok, 0.1);
+    assert!(s.recovered);
+    assert!(matches!(s.command, ValveCommand::Flow(_)));
+    assert_eq!(c.fault(), None);
+}
+
+#[test]
+fn every_bad_reading_faults_within_one_step_and_recovers_after_a_good_run() {
+    use SensorId::*;
+    let ok = good(0.2, 0.1, 200.0);
+    let cases = [
+        (
+            Sample {
+                pressure_mpa: Err(SensorErrorKind::Timeout),
+                ..ok
+            },
+            Fault::Read {
+                sensor: Pressure,
+                kind: SensorErrorKind::Timeout,
+            },
+        ),
+        (
+            Sample {
+                contraction: Ok(f32::NAN),
+                ..ok
+            },
+            Fault::NonFinite(Contraction),
+        ),
+        (
+            Sample {
+                contraction: Ok(f32::NEG_INFINITY),
+                ..ok
+            },
+            Fault::NonFinite(Contraction),
+        ),
+        (
+            Sample {
+                pressure_mpa: Ok(2.0),
+                ..ok
+            },
+            Fault::OutOfRange(Pressure),
+        ),
+        (
+            Sample {
+                load_n: Ok(650.0),
+                ..ok
+            },
+            Fault::OutOfRange(Load),
+        ),
+        (
+            Sample {
+                load_n: Ok(50.0),
+                ..ok
+            },
+            Fault::OutOfRange(Load),
+        ),
+        (
+            Sample {
+                load_n: Err(SensorErrorKind::Bus),
+                ..ok
+            },
+            Fault::Read {
+                sensor: Load,
+                kind: SensorErrorKind::Bus,
+            },
+        ),
+    ];
+    for (bad, f) in cases {
+        faults_then_recovers(bad, f);
+    }
+}
+
+/// A valve whose writes fail while `fail` is set; records the last call.
+struct FlakyValve {
+    fail: bool,
+    last: Option<ValveCommand>,
+}
+#[derive(Debug)]
+struct Refused;
+impl embedded_hal::pwm::Error for Refused {
+    fn kind(&self) -> embedded_hal::pwm::ErrorKind {
+        embedded_hal::pwm::ErrorKind::Other
+    }
+}
+impl embedded_hal::pwm::ErrorType for FlakyValve {
+    type Error = Refused;
+}
+impl Valve for FlakyValve {
+    fn set_flow(&mut self, command: f32) -> Result<(), Refused> {
+        self.last = Some(ValveCommand::Flow(command));
+        if self.fail {
+            Err(Refused)
+        } else {
+            Ok(())
+        }
+    }
+    fn set_safe(&mut self, state: SafeState) -> Result<(), Refused> {
+        self.last = Some(ValveCommand::Safe(state));
+        if self.fail {
+            Err(Refused)
+        } else {
+            Ok(())
+        }
+    }
+}
+
+#[test]
+fn a_refused_valve_write_faults_and_retries_the_safe_state() {
+    use crate::plant::{SimBus, SimContraction, SimLoad, SimPressure};
+    let bus = SimBus::new();
+    let cal = crate::hal::PressureCalibration::ADC12_0_1MPA;
+    let mut io = Io {
+        pressure: SimPressure {
+            bus: &bus,
+            calibration: cal,
+        },
+        contraction: SimContraction(&bus),
+        load: SimLoad(&bus),
+        valve: FlakyValve {
+            fail: false,
+            last: None,
+        },
+    };
+    let mut c = controller();
+    let mut k = 0u16;
+    let mut set = |bus: &SimBus| {
+        k += 1;
+        bus.pressure_counts
+            .set(cal.to_counts(0.1 + f32::from(k % 3) * 1e-3));
+        bus.contraction.set(0.05 + f32::from(k % 2) * 1e-4);
+        bus.load_n.set(200.0 + f32::from(k % 2));
+    };
+    set(&bus);
+    let s = c.step(&mut io, 0.1);
+    assert_eq!(s.fault, None);
+    assert!(matches!(io.valve.last, Some(ValveCommand::Flow(f)) if f > 0.0));
+    io.valve.fail = true;
+    set(&bus);
+    let s = c.step(&mut io, 0.1);
+    assert_eq!(s.new_fault, Some(Fault::Valve));
+    assert_eq!(io.valve.last, Some(ValveCommand::Safe(SafeState::Exhaust)));
+    // Writes accepted again: recovery after the good run.
+    io.valve.fail = false;
+    let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+    for _ in 1..n {
+        set(&bus);
+        assert_eq!(c.step(&mut io, 0.1).fault, Some(Fault::Valve));
+    }
+    set(&bus);
+    assert!(c.step(&mut io, 0.1).recovered);
+}
+
+#[test]
+fn load_within_the_margin_is_clamped_beyond_it_faults() {
+    let p = Params::DEFAULT;
+    let margin = ControllerConfig::DEFAULT.safety.load_margin_n;
+    assert!(margin > 0.0);
+    for (edge, outward) in [(p.max_load_n, 1.0f32), (p.min_load_n, -1.0)] {
+        let mut c = no_stuck_check();
+        // A noisy cell at the calibrated edge: both sides of it, and up to
+        // the margin, never fault.
+        for k in 0..200u16 {
+            let wobble = outward * margin * (f32::from(k % 5) / 4.0 - 0.25);
+            let s = c.update(&good(0.2, 0.1, edge + wobble), 0.1);
+            assert_eq!(s.fault, None, "{edge} {wobble}");
+        }
+        // Readings beyond the edge count as the edge (clamped), so the
+        // model is within the inward wobble (a quarter margin) of it.
+        let model_n = c.tracker().load_n();
+        assert!(
+            (model_n - edge).abs() <= 0.25 * margin && (model_n - edge) * outward <= 0.0,
+            "{model_n}"
+        );
+        // Just beyond the margin: fault, same step, valves safe.
+        let s = c.update(&good(0.2, 0.1, edge + outward * (margin + 0.5)), 0.1);
+        assert_eq!(s.fault, Some(Fault::OutOfRange(SensorId::Load)));
+        assert_eq!(s.command, ValveCommand::Safe(SafeState::Exhaust));
+    }
+    // A zero margin is exactly the calibrated range.
+    let mut cfg = synthetic();
+    cfg.safety.load_margin_n = 0.0;
+    let mut c = controller_with(cfg);
+    assert_eq!(c.update(&good(0.2, 0.1, 600.0), 0.1).fault, None);
+    assert_eq!(
+        c.update(&good(0.2, 0.1, 600.5), 0.1).fault,
+        Some(Fault::OutOfRange(SensorId::Load))
+    );
+}
+
+const MEMORY: Feedforward = Feedforward::HysteresisMemory(NonLocalMemory::with_shape(1.0));
+
+/// Sweep the set-point through `knots` at 1e-4 per sample with readings
+/// at the set-point; returns `(feedforward, branch switched)` per sample.
+fn sweep(c: &mut Controller, knots: &[f32]) -> std::vec::Vec<(f32, bool)> {
+    let mut out = std::vec::Vec::new();
+    let mut x = knots[0];
+    for &target in &knots[1..] {
+        while (target - x).abs() > 5e-5 {
+            x += (target - x).clamp(-1e-4, 1e-4);
+            let s = c.update(&good(0.2, x, 200.0), x);
+            assert_eq!(s.fault, None);
+            out.push((s.feedforward_mpa, s.tracker.branch_switch.is_some()));
+        }
+    }
+    out
+}
+
+fn with_feedforward(ff: Feedforward) -> Controller {
+    let mut cfg = synthetic();
+    cfg.feedforward = ff;
+    controller_with(cfg)
+}
+
+fn largest_jump_at_switch(trace: &[(f32, bool)]) -> f32 {
+    trace
+        .windows(2)
+        .filter(|w| w[1].1)
+        .map(|w| (w[1].0 - w[0].0).abs())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn memory_feedforward_follows_a_minor_loop_instead_of_jumping() {
+    let knots = [0.06, 0.16, 0.08, 0.14, 0.06, 0.16];
+    let plain = sweep(&mut with_feedforward(Feedforward::Hysteresis), &knots);
+    let mut c = with_feedforward(MEMORY);
+    let mem = sweep(&mut c, &knots);
+    assert_eq!(plain.len(), mem.len());
+    assert_eq!(mem.iter().filter(|s| s.1).count(), 4);
+    // The paper's model jumps by about 2·be at each switch.
+    let be2 = 2.0 * c.tracker().model().offset_mpa(0.11);
+    assert!(largest_jump_at_switch(&plain) > 0.5 * be2);
+    // With the memory the feedforward has no step at a switch: it
+    // changes only as the set-point moves (1e-4 per sample).
+    let at_switch = largest_jump_at_switch(&mem);
+    assert!(at_switch < 2e-3, "{at_switch} vs 2be {be2}");
+    let worst = mem
+        .windows(2)
+        .map(|w| (w[1].0 - w[0].0).abs())
+        .fold(0.0, f32::max);
+    assert!(worst < 2e-3, "{worst}");
+    // Up to the first turning point it is the plain model exactly.
+    let top = mem.iter().zip(&plain).position(|(m, p)| m != p).unwrap();
+    let first = mem.iter().position(|s| s.1).unwrap();
+    // 1000 samples from 0.06 to 0.16; it differs only once backing off.
+    assert!(top >= 1000 && top < first, "{top} {first}");
+    // After the last sweep passes every earlier turning point the loops
+    // have closed: back on the contraction branch of the plain model.
+    let (m, p) = (mem.last().unwrap().0, plain.last().unwrap().0);
+    assert!((m - p).abs() < 1e-3, "{m} vs {p}");
+}
+
+#[test]
+fn memory_is_cleared_by_a_fault_and_by_a_load_switch() {
+    let mut c = with_feedforward(MEMORY);
+    sweep(&mut c, &[0.06, 0.16, 0.12]);
+    let model = c.tracker().model().clone();
+    // Inside a minor loop: between the branches.
+    let x = 0.12;
+    let s = c.update(&good(0.2, x + 1e-4, 200.0), x);
+    let (up, down) = (
+        model.pressure_mpa(x, Branch::Contraction),
+        model.pressure_mpa(x, Branch::Expansion),
+    );
+    assert!(
+        s.feedforward_mpa > down + 1e-3 && s.feedforward_mpa < up,
+        "{s:?}"
+    );
+    // A fault vents the muscle: the loop history is gone.
+    c.update(&good(2.0, x, 200.0), x);
+    let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+    let mut last = None;
+    for k in 0..n {
+        last = Some(c.update(&good(0.2, x + f32::from(k % 2) * 1e-4, 200.0), x));
+    }
+    let s = last.unwrap();
+    assert!(s.recovered);
+    assert!((s.feedforward_mpa - down).abs() < 1e-6, "{s:?}");
+    // A load switch: the old load's turning points do not apply.
+    let mut c = with_feedforward(MEMORY);
+    sweep(&mut c, &[0.06, 0.16, 0.12]);
+    let mut s = c.update(&good(0.2, x, 400.0), x);
+    while s.tracker.load_switch.is_none() {
+        s = c.update(&good(0.2, x, 400.0), x);
+    }
+    let m = c.tracker().model();
+    assert!((s.feedforward_mpa - m.pressure_mpa(x, Branch::Expansion)).abs() < 1e-6);
+}
+
+#[test]
+fn memory_shape_is_validated() {
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.feedforward = MEMORY;
+    cfg.validate().unwrap();
+    for shape in [0.0, f32::NAN, 51.0] {
+        cfg.feedforward = Feedforward::HysteresisMemory(NonLocalMemory::with_shape(shape));
+        assert!(matches!(
+            cfg.validate(),
+            Err(ConfigError::Invalid(Setting::MemoryShape))
+        ));
+    }
+}
+
+/// Readings with the muscle short of a far set-point (inlet saturated
+/// open), the pressure at `p` dithered by a count so nothing is stuck.
+fn starved(k: u32, p: f32) -> Sample {
+    let d = (k % 2) as f32;
+    good(p + d * 3e-4, 0.02 + (k % 3) as f32 * 1e-4, 200.0 + d)
+}
+
+#[test]
+fn supply_loss_faults_after_the_window_and_retries() {
+    let s = ControllerConfig::DEFAULT.safety;
+    let n = u32::from(s.supply_loss_periods);
+    let mut c = controller();
+    // Update 0 issues the first full-open command; update k sees the
+    // pressure after k open periods. The pressure does not rise.
+    for k in 0..n {
+        let st = c.update(&starved(k, 0.1), 0.15);
+        assert_eq!(st.fault, None, "update {k}");
+        assert!(matches!(st.command, ValveCommand::Flow(f) if f >= s.supply_loss_flow));
+    }
+    let st = c.update(&starved(n, 0.1), 0.15);
+    assert_eq!(st.new_fault, Some(Fault::SupplyLoss));
+    assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+    // Sensors are fine: control retries after the recovery run, and the
+    // check trips again one window later while nothing rises.
+    let r = u32::from(s.recovery_samples);
+    let mut k = n + 1;
+    let mut recovered_at = None;
+    let mut tripped_at = None;
+    while tripped_at.is_none() && k < 10 * n {
+        let st = c.update(&starved(k, 0.1), 0.15);
+        if st.recovered {
+            recovered_at = Some(k);
+        }
+        if st.new_fault == Some(Fault::SupplyLoss) {
+            tripped_at = Some(k);
+        }
+        k += 1;
+    }
+    assert_eq!(recovered_at, Some(n + r));
+    assert_eq!(tripped_at, Some(n + r + n));
+}
+
+#[test]
+fn a_filling_muscle_never_trips_the_supply_check() {
+    let s = ControllerConfig::DEFAULT.safety;
+    let mut c = controller();
+    // Rising by exactly the threshold per window, inlet saturated all along.
+    let per_sample = s.supply_loss_rise_mpa / f32::from(s.supply_loss_periods) * 1.01;
+    let mut open = 0;
+    for k in 0..4000u32 {
+        let p = k as f32 * per_sample;
+        let st = c.update(&starved(k, p), 0.15);
+        assert_eq!(st.fault, None, "update {k} at {p} MPa");
+        if matches!(st.command, ValveCommand::Flow(f) if f >= s.supply_loss_flow) {
+            open += 1;
+        }
+    }
+    assert!(open > 3000, "{open}");
+    // Slower than the threshold: trips.
+    let mut c = controller();
+    let per_sample = s.supply_loss_rise_mpa / f32::from(s.supply_loss_periods) * 0.9;
+    let tripped = (0..4000u32)
+        .map(|k| c.update(&starved(k, 0.1 + k as f32 * per_sample), 0.15))
+        .any(|st| st.fault == Some(Fault::SupplyLoss));
+    assert!(tripped);
+    // Disabled with 0 periods.
+    let mut cfg = no_model();
+    cfg.safety.supply_loss_periods = 0;
+    let mut c = controller_with(cfg);
+    for k in 0..1000u32 {
+        assert_eq!(c.update(&starved(k, 0.1), 0.15).fault, None);
+    }
+}
+
+#[test]
+fn supply_loss_settings_are_validated() {
+    for (flow, rise, field) in [
+        (0.0, 0.01, Setting::SupplyLossFlow),
+        (1.5, 0.01, Setting::SupplyLossFlow),
+        (f32::NAN, 0.01, Setting::SupplyLossFlow),
+        (0.95, 0.0, Setting::SupplyLossRiseMpa),
+        (0.95, f32::INFINITY, Setting::SupplyLossRiseMpa),
+    ] {
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.supply_loss_flow = flow;
+        cfg.safety.supply_loss_rise_mpa = rise;
+        assert!(
+            cfg.validate() == Err(ConfigError::Invalid(field)),
+            "{flow} {rise}"
+        );
+    }
+}
+
+#[test]
+fn non_finite_set_point_faults() {
+    let mut c = controller();
+    let s = c.update(&good(0.2, 0.1, 200.0), f32::NAN);
+    assert_eq!(s.fault, Some(Fault::Setpoint));
+}
+
+#[test]
+fn frozen_reading_is_stuck_after_the_limit() {
+    let mut cfg = no_model();
+    cfg.safety.supply_loss_periods = 0;
+    let mut c = controller_with(cfg);
+    let limit = ControllerConfig::DEFAULT.safety.stuck_samples;
+    for k in 0..=limit {
+        let p = 0.2 + f32::from(k % 3) * 1e-4;
+        let s = c.update(&good(p, 0.1, 200.0 + f32::from(k % 2)), 0.1);
+        assert_eq!(s.fault, None, "sample {k}");
+    }
+    let s = c.update(&good(0.2, 0.1, 200.0), 0.1);
+    assert_eq!(s.fault, Some(Fault::Stuck(SensorId::Contraction)));
+}
+
+#[test]
+fn config_validation_names_the_field() {
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.validate().unwrap();
+    cfg.dt_s = f32::NAN;
+    assert!(matches!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::DtS))
+    ));
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.recovery_samples = 0;
+    assert!(matches!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::RecoverySamples))
+    ));
+    for bad in [-1.0, f32::NAN, f32::INFINITY] {
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.safety.load_margin_n = bad;
+        assert!(matches!(
+            cfg.validate(),
+            Err(ConfigError::Invalid(Setting::LoadMarginN))
+        ));
+    }
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.tracker.load_debounce_samples = 0;
+    assert!(matches!(cfg.validate(), Err(ConfigError::Tracker(_))));
+}
+
+#[test]
+fn blob_is_checked_at_construction() {
+    let blob = pam_core::blob::encode(&Params::DEFAULT);
+    assert!(Controller::from_blob(&blob, ControllerConfig::DEFAULT, 200.0).is_ok());
+    let mut bad = blob;
+    bad[20] ^= 0x10;
+    assert_eq!(
+        Controller::from_blob(&bad, ControllerConfig::DEFAULT, 200.0).unwrap_err(),
+        ConfigError::Coefficients(pam_core::Error::Blob("CRC mismatch"))
+    );
+    let mut p = Params::DEFAULT;
+    p.points.max_pressure_mpa = -1.0;
+    assert!(matches!(
+        Controller::from_blob(
+            &pam_core::blob::encode(&p),
+            ControllerConfig::DEFAULT,
+            200.0
+        ),
+        Err(ConfigError::Coefficients(_))
+    ));
+}
+
+#[test]
+fn arbitrary_samples_never_panic_and_never_command_nan() {
+    for ff in [Feedforward::Hysteresis, MEMORY] {
+        arbitrary_samples_with(ff);
+    }
+}
+
+fn arbitrary_samples_with(ff: Feedforward) {
+    let mut c = with_feedforward(ff);
+    let values = [
+        f32::NAN,
+        f32::INFINITY,
+        -1e30,
+        -0.01,
+        0.0,
+        0.1,
+        0.3,
+        0.6,
+        250.0,
+        1e30,
+    ];
+    for &p in &values {
+        for &x in &values {
+            for &l in &values {
+                for &sp in &values {
+                    let s = c.update(&good(p, x, l), sp);
+                    if let ValveCommand::Flow(f) = s.command {
+                        assert!((-1.0..=1.0).contains(&f), "{p} {x} {l} {sp}: {f}");
+                    }
+                    assert!(s.pressure_cmd_mpa.is_finite());
+                    assert!(s.feedforward_mpa.is_finite());
+                }
+            }
+        }
+    }
+}
+
+/// [`synthetic`] with the model check on (default bound and time).
+fn model_only() -> ControllerConfig {
+    let mut cfg = synthetic();
+    cfg.safety.implausible_periods = ControllerConfig::DEFAULT.safety.implausible_periods;
+    cfg
+}
+
+#[test]
+fn fast_and_full_checks_agree_on_every_sample() {
+    // One rule table behind both paths: for every combination of readings
+    // the fast path's answer is the full check's.
+    let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+    let mut s = ControllerConfig::DEFAULT.safety;
+    s.stuck_samples = 0;
+    let values = [
+        Err(SensorErrorKind::Timeout),
+        Ok(f32::NAN),
+        Ok(f32::NEG_INFINITY),
+        Ok(-1.0),
+        Ok(-0.04),
+        Ok(0.0),
+        Ok(0.1),
+        Ok(0.39),
+        Ok(0.52),
+        Ok(0.56),
+        Ok(0.79),
+        Ok(0.81),
+        Ok(90.0),
+        Ok(200.0),
+        Ok(620.0),
+        Ok(630.0),
+        Ok(f32::MAX),
+    ];
+    for &p in &values {
+        for &x in &values {
+            for &l in &values {
+                for sp in [0.1, f32::NAN] {
+                    let sample = Sample {
+                        pressure_mpa: p,
+                        contraction: x,
+                        load_n: l,
+                    };
+                    let mut fast = monitor::Monitor::new(&s, &coeffs, 1e-3);
+                    let mut full = fast;
+                    assert_eq!(
+                        fast.check(&sample, sp),
+                        full.check_full(&sample.readings(), sp),
+                        "{sample:?} {sp}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn pressure_above_pmax_plus_the_margin_is_over_pressure() {
+    let s = ControllerConfig::DEFAULT.safety;
+    let limit = Params::DEFAULT.points.max_pressure_mpa + s.overpressure_margin_mpa;
+    let mut c = no_stuck_check();
+    assert_eq!(c.update(&good(limit - 0.005, 0.2, 200.0), 0.2).fault, None);
+    let st = c.update(&good(limit + 0.005, 0.2, 200.0), 0.2);
+    assert_eq!(st.new_fault, Some(Fault::OverPressure));
+    assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+    // Above the plausible range it is an implausible reading instead.
+    let st = c.update(&good(s.pressure_max_mpa + 0.1, 0.2, 200.0), 0.2);
+    assert_eq!(st.fault, Some(Fault::OutOfRange(SensorId::Pressure)));
+}
+
+/// Readings at `p` with the contraction `dx` beyond the expansion branch
+/// (or inside the band when `dx` is negative enough), dithered by a count.
+fn beside_band(c: &Controller, k: u32, p: f32, dx: f32) -> Sample {
+    let m = c.tracker().model();
+    let x = m.contraction(p, Branch::Expansion) + dx;
+    let d = (k % 2) as f32 * 1e-4;
+    good(p, x + d, 200.0)
+}
+
+#[test]
+fn the_model_check_trips_after_its_time_outside_the_band() {
+    let cfg = model_only();
+    let s = cfg.safety;
+    let n = u32::from(s.implausible_periods);
+    let mut c = controller_with(cfg);
+    let p = 0.3;
+    // Inside the band, and up to the bound beyond it: never.
+    for k in 0..(3 * n) {
+        let smp = beside_band(&c, k, p, s.implausible_contraction - 0.002);
+        let st = c.update(&smp, 0.12);
+        assert_eq!(st.fault, None, "{k}");
+        assert!(st.model_excess <= s.implausible_contraction);
+    }
+    // Beyond it: the fault on the n-th period in a row, valves safe.
+    for k in 1..n {
+        let smp = beside_band(&c, k, p, s.implausible_contraction + 0.01);
+        assert_eq!(c.update(&smp, 0.12).fault, None, "{k}");
+    }
+    let st = c.update(&beside_band(&c, 0, p, 0.05), 0.12);
+    assert_eq!(st.new_fault, Some(Fault::Implausible(Check::Model)));
+    assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+    // Below the contraction branch too.
+    let mut c = controller_with(cfg);
+    let m = c.tracker().model().clone();
+    let below = m.contraction(p, Branch::Contraction) - s.implausible_contraction - 0.01;
+    let tripped = (0..n).map(|k| c.update(&good(p, below + (k % 2) as f32 * 1e-4, 200.0), 0.12));
+    assert_eq!(
+        tripped.last().unwrap().fault,
+        Some(Fault::Implausible(Check::Model))
+    );
+    // Disabled with 0 periods.
+    let mut c = controller_with(synthetic());
+    for k in 0..(3 * n) {
+        assert_eq!(c.update(&beside_band(&c, k, p, 0.1), 0.12).fault, None);
+    }
+}
+
+#[test]
+fn the_model_band_follows_the_pressure_with_the_lag() {
+    // A pressure step up: the contraction still at the old pressure's
+    // band is accepted while the lagged minimum relaxes (lag 50 ms), then
+    // not.
+    let cfg = model_only();
+    let mut c = controller_with(cfg);
+    let m = c.tracker().model().clone();
+    let x_old = m.contraction(0.1, Branch::Contraction);
+    for k in 0..200u32 {
+        let d = (k % 2) as f32 * 1e-4;
+        assert_eq!(c.update(&good(0.1 + d, x_old, 200.0), 0.12).fault, None);
+    }
+    let mut excess_at = Vec::new();
+    for k in 0..400u32 {
+        let d = (k % 2) as f32 * 1e-4;
+        let st = c.update(&good(0.45 + d, x_old + d, 200.0), 0.12);
+        excess_at.push(st.model_excess);
+    }
+    let bound = cfg.safety.implausible_contraction;
+    assert!(excess_at[0] < 0.1 * bound, "{}", excess_at[0]);
+    assert!(
+        excess_at[399] > cfg.safety.implausible_contraction,
+        "{excess_at:?}"
+    );
+}
+
+#[test]
+fn the_model_check_pauses_while_a_load_step_settles() {
+    let cfg = model_only();
+    let s = cfg.safety;
+    let mut c = controller_with(cfg);
+    let p = 0.35;
+    let x = c.tracker().model().contraction(p, Branch::Contraction);
+    // The load steps to 600 N; the muscle (this contraction) would belong
+    // to 200 N, outside the new load's band.
+    let heavy = Coeffs::new(Params::DEFAULT)
+        .unwrap()
+        .load_model_clamped(600.0);
+    assert!(x > heavy.contraction(p, Branch::Expansion) + s.implausible_contraction);
+    let mut switched_at = None;
+    let settle = (s.implausible_settle_s / cfg.dt_s) as u32;
+    for k in 0..(settle + u32::from(s.implausible_periods) + 10) {
+        let d = (k % 2) as f32 * 1e-4;
+        let st = c.update(&good(p + d, x, 600.0 + d), 0.12);
+        if st.tracker.load_switch.is_some() {
+            switched_at = Some(k);
+        }
+        if let Some(f) = st.new_fault {
+            let at = k - switched_at.unwrap();
+            assert_eq!(f, Fault::Implausible(Check::Model));
+            assert!(at >= settle, "{at}");
+            return;
+        }
+    }
+    panic!("never tripped after settling");
+}
+
+/// Readings with the muscle beyond a set-point far below (exhaust
+/// saturated open), the pressure at `p`, dithered by a count.
+fn venting(k: u32, p: f32) -> Sample {
+    let d = (k % 2) as f32 * 3e-4;
+    good(p + d, 0.2 + (k % 3) as f32 * 1e-4, 200.0 + d)
+}
+
+#[test]
+fn the_vent_check_faults_when_the_pressure_does_not_fall() {
+    let mut cfg = synthetic();
+    cfg.safety.vent_periods = ControllerConfig::DEFAULT.safety.vent_periods;
+    let s = cfg.safety;
+    let n = u32::from(s.vent_periods);
+    let mut c = controller_with(cfg);
+    for k in 0..n {
+        let st = c.update(&venting(k, 0.3), 0.02);
+        assert_eq!(st.fault, None, "{k}");
+        assert!(matches!(st.command, ValveCommand::Flow(f) if f <= -s.vent_flow));
+    }
+    let st = c.update(&venting(n, 0.3), 0.02);
+    assert_eq!(st.new_fault, Some(Fault::Implausible(Check::Vent)));
+    // Falling by the threshold per window: never.
+    let mut c = controller_with(cfg);
+    let per = s.vent_fall_mpa / n as f32 * 1.05;
+    for k in 0..(5 * n) {
+        let p = 0.45 - k as f32 * per;
+        assert_eq!(c.update(&venting(k, p), 0.02).fault, None, "{k} {p}");
+    }
+    // Near atmosphere there is nothing to vent: never.
+    let mut c = controller_with(cfg);
+    for k in 0..(5 * n) {
+        let st = c.update(&venting(k, s.vent_min_mpa * 0.5), 0.0);
+        assert_eq!(st.fault, None, "{k}");
+    }
+}
+
+#[test]
+fn overruns_in_a_row_fault_and_clear() {
+    let limit = ControllerConfig::DEFAULT.safety.overrun_limit;
+    let mut c = no_stuck_check();
+    let ok = |k: u16| good(0.2, 0.1 + f32::from(k % 2) * 1e-4, 200.0);
+    // Fewer than the limit in a row, repeatedly: never.
+    for k in 0..1000u16 {
+        c.record_overrun(k % limit != 0);
+        assert_eq!(c.update(&ok(k), 0.1).fault, None);
+    }
+    for k in 0..limit {
+        c.record_overrun(true);
+        let st = c.update(&ok(k), 0.1);
+        if k + 1 < limit {
+            assert_eq!(st.fault, None);
+        } else {
+            assert_eq!(st.new_fault, Some(Fault::Overrun));
+        }
+    }
+    c.record_overrun(false);
+    let n = ControllerConfig::DEFAULT.safety.recovery_samples;
+    let recovered = (0..n).map(|k| c.update(&ok(k), 0.1)).any(|st| st.recovered);
+    assert!(recovered);
+}
+
+#[test]
+fn repeated_trips_latch_until_the_operator_resets() {
+    let s = ControllerConfig::DEFAULT.safety;
+    let mut c = no_stuck_check();
+    let ok = |k: u32| good(0.2, 0.1 + (k % 2) as f32 * 1e-4, 200.0);
+    let nan = Sample {
+        contraction: Ok(f32::NAN),
+        ..ok(0)
+    };
+    // One NaN every 60 samples: each trip recovers after 50, until the
+    // (latch_trips + 1)-th within the window latches.
+    let mut trips = 0;
+    for k in 0..(60 * u32::from(s.latch_trips + 1)) {
+        let st = c.update(&(if k % 60 == 0 { nan } else { ok(k) }), 0.1);
+        if st.new_fault.is_some() {
+            trips += 1;
+            assert_eq!(st.latched, trips > s.latch_trips);
+        }
+    }
+    assert!(c.latched());
+    // Good samples do not clear a latch.
+    for k in 0..20_000 {
+        let st = c.update(&ok(k), 0.1);
+        assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+        assert!(st.latched && !st.recovered);
+    }
+    // The operator's reset: control after the recovery run.
+    c.reset_latch();
+    assert!(!c.latched());
+    let mut recovered_after = None;
+    for k in 0..u32::from(s.recovery_samples) {
+        if c.update(&ok(k), 0.1).recovered {
+            recovered_after = Some(k + 1);
+        }
+    }
+    assert_eq!(recovered_after, Some(u32::from(s.recovery_samples)));
+    // Trips further apart than the window never latch.
+    let mut c = no_stuck_check();
+    let gap = s.latch_window_periods / u32::from(s.latch_trips) + 1;
+    for k in 0..(gap * 10) {
+        let st = c.update(&(if k % gap == 0 { nan } else { ok(k) }), 0.1);
+        assert!(!st.latched, "{k}");
+    }
+}
+
+#[test]
+fn a_latch_at_boot_holds_the_safe_state_until_reset() {
+    let mut c = no_stuck_check();
+    c.latch(Fault::Watchdog);
+    for k in 0..1000u32 {
+        let st = c.update(&good(0.2, 0.1 + (k % 2) as f32 * 1e-4, 200.0), 0.1);
+        assert_eq!(st.fault, Some(Fault::Watchdog));
+        assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
+    }
+    c.reset_latch();
+    let n = u32::from(ControllerConfig::DEFAULT.safety.recovery_samples);
+    let st = (0..n)
+        .map(|k| c.update(&good(0.2, 0.1 + (k % 2) as f32 * 1e-4, 200.0), 0.1))
+        .last()
+        .unwrap();
+    assert!(st.recovered);
+}
+
+#[test]
+fn every_setting_names_itself_and_its_requirement() {
+    let e = ConfigError::Invalid(Setting::ImplausibleContraction);
+    assert_eq!(
+        std::format!("{e}"),
+        "`implausible_contraction` must be finite and > 0"
+    );
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.overpressure_margin_mpa = 0.0;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::OverpressureMarginMpa))
+    );
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.latch_window_periods = 0;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::LatchWindowPeriods))
+    );
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.implausible_lag_s = f32::NAN;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::ImplausibleLagS))
+    );
+}
