@@ -24,7 +24,7 @@ pub const MEMORY_DEPTH: usize = 8;
 
 /// Bisection steps of the minor-loop feedforward's inverse: `Pmax`
 /// (0.5 MPa) over 2²⁰ is 5·10⁻⁷ MPa, far below the 2·10⁻⁴ MPa of
-/// pam-core's inverse table (`pam_core::hysteresis::INVERSE_TOLERANCE_MPA`).
+/// pam-core's inverse table (`pam_core::load_model::INVERSE_TOLERANCE_MPA`).
 pub const MEMORY_INVERSE_STEPS: usize = 20;
 
 /// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
