@@ -47,27 +47,9 @@ pub fn characterisation_run(seed: u64) -> Vec<Sample> {
     let mut out = Vec::new();
     for &load in LOADS_N.iter() {
         rig.set_load_n(load);
-        let mut p_ref = 0.0;
-        let settle = (SETTLE_S / dt).round() as usize;
-        for _ in 0..settle {
-            out.push(rig.measure());
-            rig.advance_regulated(p_ref, dt);
-        }
-        for w in PRESSURE_KNOTS_MPA.windows(2) {
-            let (from, to) = (w[0], w[1]);
-            let n = ((to - from).abs() / RAMP_MPA_PER_S / dt).round() as usize;
-            for k in 0..n {
-                out.push(rig.measure());
-                p_ref = from + (to - from) * (k + 1) as f64 / n as f64;
-                rig.advance_regulated(p_ref, dt);
-            }
-        }
+        pressure_protocol(&mut rig, dt, &mut out);
     }
-    // Re-time from zero (the logger's clock starts with the first sample).
-    let t0 = out.first().map(|s| s.t_s).unwrap_or(0.0);
-    for s in out.iter_mut() {
-        s.t_s -= t0;
-    }
+    retime_from_zero(&mut out);
     out
 }
 
@@ -99,27 +81,39 @@ pub fn isometric_run(seed: u64) -> Vec<Sample> {
             hold_contraction: hold,
             stiffness_n_per_m: CLAMP_STIFFNESS_N_PER_M,
         }));
-        let mut p_ref = 0.0;
-        let settle = (SETTLE_S / dt).round() as usize;
-        for _ in 0..settle {
+        pressure_protocol(&mut rig, dt, &mut out);
+    }
+    retime_from_zero(&mut out);
+    out
+}
+
+/// At the rig's present load or clamp: settle at 0 MPa, then ramp the
+/// regulated pressure through [`PRESSURE_KNOTS_MPA`] at [`RAMP_MPA_PER_S`],
+/// logging a sample every `dt` seconds.
+fn pressure_protocol(rig: &mut Rig, dt: f64, out: &mut Vec<Sample>) {
+    let mut p_ref = 0.0;
+    let settle = (SETTLE_S / dt).round() as usize;
+    for _ in 0..settle {
+        out.push(rig.measure());
+        rig.advance_regulated(p_ref, dt);
+    }
+    for w in PRESSURE_KNOTS_MPA.windows(2) {
+        let (from, to) = (w[0], w[1]);
+        let n = ((to - from).abs() / RAMP_MPA_PER_S / dt).round() as usize;
+        for k in 0..n {
             out.push(rig.measure());
+            p_ref = from + (to - from) * (k + 1) as f64 / n as f64;
             rig.advance_regulated(p_ref, dt);
         }
-        for w in PRESSURE_KNOTS_MPA.windows(2) {
-            let (from, to) = (w[0], w[1]);
-            let n = ((to - from).abs() / RAMP_MPA_PER_S / dt).round() as usize;
-            for k in 0..n {
-                out.push(rig.measure());
-                p_ref = from + (to - from) * (k + 1) as f64 / n as f64;
-                rig.advance_regulated(p_ref, dt);
-            }
-        }
     }
+}
+
+/// Re-time from zero (the logger's clock starts with the first sample).
+fn retime_from_zero(out: &mut [Sample]) {
     let t0 = out.first().map(|s| s.t_s).unwrap_or(0.0);
     for s in out.iter_mut() {
         s.t_s -= t0;
     }
-    out
 }
 
 /// Write samples as the project's CSV, `t_s,load_n,pressure_mpa,contraction`,
