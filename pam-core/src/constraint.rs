@@ -40,7 +40,8 @@ impl GeneralCubic {
     /// Solve eqs. (8)–(11) for the cubic through `(R1, 0)`, `(Rx1, Pmax)`,
     /// `(x_tan, y_tan)` and `(x_inf, y_inf)`.
     ///
-    /// Two misprints of the paper are corrected here:
+    /// Three misprints of the paper are corrected here (the third, eq. 10's
+    /// `E2/E` for `E2/E1`, is noted at the line):
     /// * `F1`, `F2` are printed with `+ (X − R1)`; eliminating `A` (eq. 8)
     ///   from `A(X³−R1³) − B(X²−R1²) + C(X−R1) = Y` gives `− (X − R1)`
     ///   (`B·E − C·F = Y − G` only holds with the minus sign);
@@ -69,7 +70,8 @@ impl GeneralCubic {
         let g1 = k1 * y_inf;
         let g2 = k2 * y_inf;
 
-        // eq. (10)
+        // eq. (10); its second printing has `E2/E` in the denominator, a
+        // misprint of `E2/E1` (the first printing and the derivation agree).
         let e21 = e2 / e1;
         let c = (e21 * pmax - e21 * g1 - y_tan + g2) / (f2 - e21 * f1);
         // eq. (9)
@@ -279,5 +281,26 @@ mod tests {
         let mut p = Params::DEFAULT.points;
         p.tangency.contraction = p.inflection.contraction;
         assert_eq!(GeneralCubic::through_points(&p), Err(Error::Singular));
+    }
+}
+
+#[cfg(test)]
+mod paper_relations {
+    use super::*;
+    use crate::params::Params;
+
+    /// The figures stated on [`crate::CriticalPoints::tangency`]: on the
+    /// default muscle the cubic's `b/(2a)` is far from the given tangency
+    /// point and `b² − 4ac < 0`, so the paper's `h` has no real value.
+    #[test]
+    fn the_tangency_point_is_an_interior_point_not_b_over_2a() {
+        let p = Params::DEFAULT.points;
+        let f = GeneralCubic::through_points(&p)
+            .unwrap()
+            .factor(f64::from(p.root_contraction));
+        let x_tan_paper = f.b / (2.0 * f.a);
+        assert!((f64::from(p.tangency.contraction) - 0.068).abs() < 5e-4);
+        assert!((x_tan_paper - 0.174).abs() < 5e-4, "b/(2a) = {x_tan_paper}");
+        assert!(f.b * f.b - 4.0 * f.a * f.c < 0.0);
     }
 }

@@ -21,12 +21,24 @@ pub struct Point {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CriticalPoints {
     /// First real root `R1`: contraction at zero pressure (the minimum contraction).
+    ///
+    /// Eq. (4) of the paper (`R1 ≠ 0`, add an epsilon) is not applied: `c1`
+    /// comes from eq. (14), `c = C − bR`, not from eq. (20)'s `−D1/R1`, so
+    /// nothing divides by `R1` and `R1 = 0` is valid.
     pub root_contraction: f32,
     /// `Rx1`: contraction at the maximum operating pressure.
     pub max_contraction: f32,
     /// `Pmax`: maximum operating pressure, MPa.
     pub max_pressure_mpa: f32,
-    /// Tangency point `(x_tan, y_tan)`.
+    /// Tangency point `(x_tan, y_tan)`: an interior point the cubic passes
+    /// through (the third condition on eq. 7), nothing more.
+    ///
+    /// The paper also writes `x_tan = b/(2a)`, `y_inf = y_tan` and
+    /// `x_inf = x_tan − h` with `h = √(b² − 4ac)/(2a)`. These cannot hold for a
+    /// model with one real root: that needs `b² − 4ac < 0` (eq. 3), which
+    /// makes `h` imaginary. pam-core therefore does not impose them; on
+    /// [`Params::DEFAULT`] `x_tan` is 0.068 while the fitted cubic's `b/(2a)`
+    /// is 0.174 (checked by a unit test in [`crate::constraint`]).
     pub tangency: Point,
     /// Inflection point `(x_inf, y_inf)`.
     pub inflection: Point,

@@ -2,12 +2,14 @@
 //!
 //! Host-side tools around [`pam_core`]: identify the paper's hysteresis model
 //! from test-rig measurements ([`fit`]), drive the model with measured
-//! pressure and load ([`simulate`]), and export what the firmware flashes
-//! ([`model_file`]: the model file, the coefficient blob and a Rust constants
-//! file).
+//! pressure and load ([`simulate`]), find where simulation and measurement
+//! disagree, name the missing effect and add it ([`diagnose`]), and export
+//! what the firmware flashes ([`model_file`]: the model file, the coefficient
+//! blob and a Rust constants file).
 //!
-//! The binary `pam-lab` is a thin command-line layer over these modules; the
-//! library is the reusable part (for example for `pam-lab diagnose`).
+//! The binary `pam-lab` is a thin command-line layer over these modules
+//! (`fit`, `simulate`, `diagnose`); the library is the reusable part, for
+//! tests, fuzzing and your own scripts.
 //!
 //! ```
 //! use pam_lab::{data, fit, synth};
