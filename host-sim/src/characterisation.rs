@@ -73,15 +73,46 @@ pub const CLAMP_STIFFNESS_N_PER_M: f64 = 2e6;
 /// assert!(max_load > 500.0 && max_load < 2000.0, "{max_load}");
 /// ```
 pub fn isometric_run(seed: u64) -> Vec<Sample> {
-    let dt = 1.0 / LOG_RATE_HZ;
-    let mut rig = Rig::reference(0.0, seed);
+    let rig = Rig::reference(0.0, seed);
+    isometric_run_on(rig, &IsometricProtocol::REFERENCE)
+}
+
+/// How an isometric test runs: where the muscle is held, how far and how
+/// fast the pressure goes, how often the logger samples.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IsometricProtocol<'a> {
+    /// Contractions the muscle is clamped at, in turn.
+    pub holds: &'a [f64],
+    /// Top of the pressure cycles, MPa ([`PRESSURE_KNOTS_MPA`] are scaled
+    /// from their 0.5 MPa).
+    pub max_pressure_mpa: f64,
+    /// Pressure ramp rate, MPa/s.
+    pub ramp_mpa_per_s: f64,
+    /// Logging rate, Hz.
+    pub log_rate_hz: f64,
+}
+
+impl IsometricProtocol<'_> {
+    /// [`isometric_run`]'s protocol.
+    pub const REFERENCE: IsometricProtocol<'static> = IsometricProtocol {
+        holds: &ISOMETRIC_HOLDS,
+        max_pressure_mpa: 0.5,
+        ramp_mpa_per_s: RAMP_MPA_PER_S,
+        log_rate_hz: LOG_RATE_HZ,
+    };
+}
+
+/// An isometric run of `protocol` on `rig` (its muscle, valves and sensors).
+pub fn isometric_run_on(mut rig: Rig, protocol: &IsometricProtocol) -> Vec<Sample> {
+    let dt = 1.0 / protocol.log_rate_hz;
+    let scale = protocol.max_pressure_mpa / 0.5;
     let mut out = Vec::new();
-    for &hold in ISOMETRIC_HOLDS.iter() {
+    for &hold in protocol.holds {
         rig.set_clamp(Some(IsometricClamp {
             hold_contraction: hold,
             stiffness_n_per_m: CLAMP_STIFFNESS_N_PER_M,
         }));
-        pressure_protocol(&mut rig, dt, &mut out);
+        pressure_protocol_scaled(&mut rig, dt, scale, protocol.ramp_mpa_per_s, &mut out);
     }
     retime_from_zero(&mut out);
     out
@@ -91,6 +122,18 @@ pub fn isometric_run(seed: u64) -> Vec<Sample> {
 /// regulated pressure through [`PRESSURE_KNOTS_MPA`] at [`RAMP_MPA_PER_S`],
 /// logging a sample every `dt` seconds.
 fn pressure_protocol(rig: &mut Rig, dt: f64, out: &mut Vec<Sample>) {
+    pressure_protocol_scaled(rig, dt, 1.0, RAMP_MPA_PER_S, out);
+}
+
+/// [`pressure_protocol`] with the knots scaled by `scale` and ramped at
+/// `ramp_mpa_per_s`.
+fn pressure_protocol_scaled(
+    rig: &mut Rig,
+    dt: f64,
+    scale: f64,
+    ramp_mpa_per_s: f64,
+    out: &mut Vec<Sample>,
+) {
     let mut p_ref = 0.0;
     let settle = (SETTLE_S / dt).round() as usize;
     for _ in 0..settle {
@@ -98,8 +141,8 @@ fn pressure_protocol(rig: &mut Rig, dt: f64, out: &mut Vec<Sample>) {
         rig.advance_regulated(p_ref, dt);
     }
     for w in PRESSURE_KNOTS_MPA.windows(2) {
-        let (from, to) = (w[0], w[1]);
-        let n = ((to - from).abs() / RAMP_MPA_PER_S / dt).round() as usize;
+        let (from, to) = (scale * w[0], scale * w[1]);
+        let n = ((to - from).abs() / ramp_mpa_per_s / dt).round() as usize;
         for k in 0..n {
             out.push(rig.measure());
             p_ref = from + (to - from) * (k + 1) as f64 / n as f64;

@@ -17,7 +17,9 @@ pub mod report;
 pub mod rig;
 pub mod sensors;
 
-pub use characterisation::{characterisation_run, isometric_run, write_samples_csv};
+pub use characterisation::{
+    characterisation_run, isometric_run, isometric_run_on, write_samples_csv, IsometricProtocol,
+};
 pub use rig::{Rig, Sample, TrueState};
 pub mod bench;
 pub mod faults;

@@ -61,3 +61,51 @@ fn isotonic_record_fits_with_both_errors_reported() {
     assert_eq!(r.test_kind, TestKind::Isotonic);
     assert!(r.test.total.contraction_rms < 0.02, "{}", r.test.to_text());
 }
+
+/// The kind of public record a user brings first: a 10 mm muscle tested
+/// isometrically at six rest lengths, one record per length, four fixed
+/// contractions each, pressure 0–0.62 MPa, logged at 1 kHz. Generated on
+/// host-sim's rig (a 10 mm Tondu–Lopez + Maxwell-slip muscle, 0.8 MPa
+/// supply), not a real measurement: every length must fit, with its
+/// held-out pressure error reported.
+#[test]
+fn small_muscle_isometric_records_fit_at_every_length() {
+    use host_sim::plant::MuscleParams;
+    use host_sim::pneumatics::PneumaticParams;
+    let holds = [0.12, 0.15, 0.18, 0.21];
+    let protocol = host_sim::IsometricProtocol {
+        holds: &holds,
+        max_pressure_mpa: 0.62,
+        ramp_mpa_per_s: 0.25,
+        log_rate_hz: 1000.0,
+    };
+    let pneumatics = PneumaticParams {
+        supply_mpa: 0.8,
+        ..PneumaticParams::DEFAULT
+    };
+    for (i, length_m) in [0.10, 0.15, 0.20, 0.25, 0.30, 0.40].into_iter().enumerate() {
+        let muscle = MuscleParams::small_bore_10mm(length_m);
+        let rig = host_sim::Rig::new(muscle, pneumatics, 0.0, 10 + i as u64);
+        let rec = record(
+            "small isometric",
+            host_sim::isometric_run_on(rig, &protocol),
+        );
+        let r = fit(&rec, &FitConfig::default()).unwrap_or_else(|e| panic!("{length_m} m: {e}"));
+        Coeffs::new(r.params).unwrap();
+        eprintln!(
+            "10 mm muscle, {length_m:.2} m, {} samples: held-out pressure RMS {:.5} MPa, contraction RMS {:.5}; loads {:.0}..{:.0} N; {}",
+            rec.samples.len(),
+            r.test.total.pressure_rms_mpa,
+            r.test.total.contraction_rms,
+            r.params.min_load_n,
+            r.params.max_load_n,
+            r.shape.statement(),
+        );
+        assert_eq!(r.test_kind, TestKind::Isometric, "{length_m} m");
+        assert!(
+            r.test.total.pressure_rms_mpa < 0.04,
+            "{length_m} m: {}",
+            r.test.to_text()
+        );
+    }
+}
