@@ -31,7 +31,7 @@
 
 #![allow(dead_code)]
 
-use pam_core::{Coeffs, Params};
+use pam_core::{Branch, Coeffs, Params};
 
 /// Which effect the rig has.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,7 +143,9 @@ pub fn protocol(seed: u64, short: bool) -> Vec<(f64, f64, f64)> {
     out
 }
 
-/// The paper's branches, eqs. (21)–(26), evaluated in `f64` by bisection.
+/// The paper's branches, eqs. (21)–(26), inverted in `f64` by bisection.
+/// The branch itself is pam-core's (one model, one home); what each plant
+/// adds to it (its effect) is this file's own.
 struct Muscle {
     coeffs: Coeffs,
     pmax: f64,
@@ -163,13 +165,9 @@ impl Muscle {
     fn branch_x(&self, load: f64, p: f64, sign: f64, be: f64) -> f64 {
         let at = self.coeffs.load_cubic(load as f32);
         let (r, rx) = (at.cubic.root, at.max_contraction);
-        let ae = 0.5 * (rx - r);
-        let h = r + ae;
-        let g = |x: f64| {
-            let u = (x - h) / ae;
-            let e = (1.0 - u * u).max(0.0).sqrt();
-            at.cubic.eval(x) + sign * be * e
-        };
+        // The offset on the contraction branch scaled to `sign·be`.
+        let scale = sign * be / at.ellipse_height_mpa;
+        let g = |x: f64| at.pressure_and_slope(x, Branch::Contraction, scale).0;
         let p = p.clamp(0.0, self.pmax);
         let (mut lo, mut hi) = (r, rx);
         for _ in 0..50 {
