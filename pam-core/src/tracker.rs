@@ -8,44 +8,90 @@
 //! * switches branch only when the signal has moved back from its extreme by
 //!   more than `direction_deadband` (so sensor noise below the deadband never
 //!   flips the direction);
-//! * switches the active load model when the load differs from the active
-//!   load by more than `load_threshold_n` for `load_debounce_samples`
-//!   consecutive samples, to the mean of those samples (a single spike never
-//!   switches);
+//! * switches the active load model when the load lies beyond
+//!   `load_threshold_n` from the active load, *on the same side*, for
+//!   `load_debounce_samples` consecutive samples, to the mean of those
+//!   samples (a single spike never switches; a load alternating across the
+//!   active one never switches; a non-finite load restarts the count);
 //! * reports each switch in the returned [`Update`].
 //!
-//! Work per sample is bounded: a few comparisons, and on a load switch one
-//! [`LoadModel`] rebuild (`2 × INVERSE_KNOTS` forward evaluations).
+//! # Work per sample
+//! A few comparisons. A load switch needs the new load's [`LoadModel`]:
+//! its coefficients (eqs. 16–21, in `f32`: four divisions) and its two
+//! inverse tables (at most [`BUILD_UNITS_MAX`](crate::load_model::BUILD_UNITS_MAX)
+//! work units of one forward evaluation or one Newton step each). By default
+//! ([`Tracker::new`]) the tables are built within the update that decides the
+//! switch, as host tools want. A real-time caller sets a budget with
+//! [`Tracker::set_build_budget`]: the tables are then built into a spare
+//! model a bounded number of units per update while the previous model
+//! stays active, and the switch (the [`Update::load_switch`]) happens on the
+//! update that completes them — no update does more than its budget.
 //! Non-finite samples are ignored (and reported), never stored.
 
 use crate::branch::Branch;
 use crate::coeffs::Coeffs;
 use crate::error::Error;
-use crate::load_model::LoadModel;
+use crate::load_model::{FamilyF32, LoadModel, TableBuild};
 
 /// Tuning of the tracker.
+///
+/// `direction_deadband` is in the drive signal's unit: build the
+/// configuration with [`TrackerConfig::for_pressure_drive`] (MPa) or
+/// [`TrackerConfig::for_contraction_drive`] (fraction of rest length), which
+/// name it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TrackerConfig {
-    /// How far, in the drive signal's unit, the signal must move back from its
-    /// last extreme before the branch switches. Set it above the signal's
-    /// peak-to-peak noise.
+    /// How far, in the drive signal's unit (MPa for a pressure drive, a
+    /// fraction of rest length for a contraction drive), the signal must move
+    /// back from its last extreme before the branch switches. Set it above
+    /// the signal's peak-to-peak noise.
     pub direction_deadband: f32,
     /// Load difference from the active load that counts as a change, N.
     pub load_threshold_n: f32,
-    /// Consecutive samples beyond the threshold before the model switches.
+    /// Consecutive samples beyond the threshold (on one side) before the
+    /// model switches.
     pub load_debounce_samples: u16,
 }
 
 impl TrackerConfig {
     /// For a pressure drive signal in MPa with noise up to ±0.002 MPa and a
     /// load cell with noise up to ±5 N, sampled at 100–1000 Hz.
-    pub const DEFAULT_PRESSURE: TrackerConfig = TrackerConfig {
-        direction_deadband: 0.005,
-        load_threshold_n: 20.0,
-        load_debounce_samples: 5,
-    };
+    pub const DEFAULT_PRESSURE: TrackerConfig =
+        TrackerConfig::for_pressure_drive(0.005, 20.0, 5);
+
+    /// For a contraction drive signal (the firmware controller's noise-free
+    /// set-point), 1 kHz: a deadband of 0.002 of rest length.
+    pub const DEFAULT_CONTRACTION: TrackerConfig =
+        TrackerConfig::for_contraction_drive(0.002, 20.0, 5);
+
+    /// A tracker driven by pressure: the direction deadband in MPa.
+    pub const fn for_pressure_drive(
+        direction_deadband_mpa: f32,
+        load_threshold_n: f32,
+        load_debounce_samples: u16,
+    ) -> TrackerConfig {
+        TrackerConfig {
+            direction_deadband: direction_deadband_mpa,
+            load_threshold_n,
+            load_debounce_samples,
+        }
+    }
+
+    /// A tracker driven by contraction (measured or desired): the direction
+    /// deadband as a fraction of the muscle's rest length.
+    pub const fn for_contraction_drive(
+        direction_deadband_contraction: f32,
+        load_threshold_n: f32,
+        load_debounce_samples: u16,
+    ) -> TrackerConfig {
+        TrackerConfig {
+            direction_deadband: direction_deadband_contraction,
+            load_threshold_n,
+            load_debounce_samples,
+        }
+    }
 
     /// Validate: finite, positive deadband and threshold, debounce ≥ 1.
     pub fn validate(&self) -> Result<(), Error> {
@@ -92,7 +138,8 @@ pub struct Update {
     pub non_finite_input: bool,
 }
 
-/// Tracks the branch and the active load; owns the active [`LoadModel`].
+/// Tracks the branch and the active load; owns the active [`LoadModel`] and
+/// a spare one that the next load's model is built into.
 #[derive(Clone, Debug)]
 pub struct Tracker {
     config: TrackerConfig,
@@ -103,14 +150,29 @@ pub struct Tracker {
     /// becomes the extreme and cannot reverse). A plain `f32` rather than an
     /// `Option` saves the tag's load, test and store per sample.
     extreme: f32,
-    model: LoadModel,
+    /// The load family in `f32`: a new load's coefficients without `f64`.
+    family: FamilyF32,
+    /// Two models: the active one and the spare (the next load's, while
+    /// it is built). A switch flips `second_active`, no copy.
+    first: LoadModel,
+    second: LoadModel,
+    second_active: bool,
+    /// The spare's table build; `building` while it is in progress.
+    build: TableBuild,
+    building: bool,
+    /// Work units of the table build per update; 0: all at once.
+    build_units: u16,
     candidate_count: u16,
     candidate_sum_n: f32,
+    /// The side of the active (or pending) load the candidate's samples lie on.
+    candidate_above: bool,
 }
 
 impl Tracker {
     /// A tracker starting on `branch` with the model at `initial_load_n`
-    /// (clamped to the calibrated range).
+    /// (clamped to the calibrated range). A load switch builds the new
+    /// model within the update that decides it (no build budget; see
+    /// [`set_build_budget`](Self::set_build_budget)).
     pub fn new(
         coeffs: &Coeffs,
         config: TrackerConfig,
@@ -118,14 +180,34 @@ impl Tracker {
         branch: Branch,
     ) -> Result<Tracker, Error> {
         config.validate()?;
+        let family = FamilyF32::new(coeffs.family());
+        let model = family.model(coeffs.clamp_load_n(initial_load_n));
         Ok(Tracker {
             config,
             branch,
             extreme: f32::NAN,
-            model: coeffs.load_model_clamped(initial_load_n),
+            family,
+            second: model.clone(),
+            first: model,
+            second_active: false,
+            build: TableBuild::new(),
+            building: false,
+            build_units: 0,
             candidate_count: 0,
             candidate_sum_n: 0.0,
+            candidate_above: false,
         })
+    }
+
+    /// Bound the work of a load switch per [`update`](Self::update): at most
+    /// `units_per_update` work units of the new model's table build (each
+    /// one forward evaluation or one Newton step: one division, one square
+    /// root and a few dozen `f32` operations); 0 builds at once. The build
+    /// then spans up to
+    /// `BUILD_UNITS_MAX / units_per_update` updates, during which the active
+    /// model stays the old one.
+    pub fn set_build_budget(&mut self, units_per_update: u16) {
+        self.build_units = units_per_update;
     }
 
     /// The branch the muscle is on.
@@ -134,18 +216,40 @@ impl Tracker {
     }
 
     /// The active per-load model.
+    #[inline]
     pub fn model(&self) -> &LoadModel {
-        &self.model
+        if self.second_active {
+            &self.second
+        } else {
+            &self.first
+        }
     }
 
     /// The active load, N.
     pub fn load_n(&self) -> f32 {
-        self.model.load_n()
+        self.model().load_n()
+    }
+
+    /// The load whose model is being built (the switch in progress), N.
+    pub fn pending_load_n(&self) -> Option<f32> {
+        if self.building {
+            Some(self.spare().load_n())
+        } else {
+            None
+        }
     }
 
     /// The configuration.
     pub fn config(&self) -> &TrackerConfig {
         &self.config
+    }
+
+    fn spare(&self) -> &LoadModel {
+        if self.second_active {
+            &self.first
+        } else {
+            &self.second
+        }
     }
 
     /// Feed one sample of the drive signal and the load.
@@ -158,10 +262,16 @@ impl Tracker {
         }
         if load_n.is_finite() {
             out.load_out_of_range = !coeffs.load_in_range(load_n);
-            out.load_switch = self.update_load(coeffs, load_n);
+            self.update_load(coeffs, load_n);
         } else {
+            // A non-finite load is no evidence of a load change: the run of
+            // consecutive samples beyond the threshold ends here.
+            self.reset_candidate();
             out.non_finite_input = true;
             out.load_out_of_range = true;
+        }
+        if self.building {
+            out.load_switch = self.advance_build();
         }
         out
     }
@@ -188,36 +298,96 @@ impl Tracker {
         }
     }
 
-    fn update_load(&mut self, coeffs: &Coeffs, load_n: f32) -> Option<LoadSwitch> {
+    fn reset_candidate(&mut self) {
+        self.candidate_count = 0;
+        self.candidate_sum_n = 0.0;
+    }
+
+    /// The debounce; may start a table build. `load_n` is finite.
+    fn update_load(&mut self, coeffs: &Coeffs, load_n: f32) {
         let target = coeffs.clamp_load_n(load_n);
-        if (target - self.model.load_n()).abs() <= self.config.load_threshold_n {
-            self.candidate_count = 0;
-            self.candidate_sum_n = 0.0;
-            return None;
+        // The load the model is heading to: the pending one during a build.
+        let reference = if self.building {
+            self.spare().load_n()
+        } else {
+            self.model().load_n()
+        };
+        let threshold = self.config.load_threshold_n;
+        if (target - reference).abs() <= threshold {
+            self.reset_candidate();
+            return;
         }
+        // Only a run of samples on one side of the reference is a load
+        // change: samples alternating across it (a load oscillating about
+        // the active one) restart the run instead of adding up to a switch
+        // to their mean, which is the active load again.
+        let above = target > reference;
+        if self.candidate_count > 0 && above != self.candidate_above {
+            self.reset_candidate();
+        }
+        self.candidate_above = above;
         self.candidate_count = self.candidate_count.saturating_add(1);
         self.candidate_sum_n += target;
         if self.candidate_count < self.config.load_debounce_samples {
-            return None;
+            return;
         }
-        Some(self.switch_load(coeffs))
+        let to_n = coeffs.clamp_load_n(self.candidate_sum_n / f32::from(self.candidate_count));
+        self.reset_candidate();
+        if self.building && (to_n - self.model().load_n()).abs() <= threshold {
+            // Back at the active load before the pending model was done.
+            self.building = false;
+            return;
+        }
+        self.start_build(to_n);
     }
 
-    /// The rare path of [`update_load`](Self::update_load): rebuild the model
-    /// at the debounced mean load. Out of line so that the per-sample path
-    /// does not carry the model's stack frame (about 560 bytes) and copy.
-    #[cold]
+    /// Start building the model at `to_n` into the spare: its coefficients
+    /// now (fixed work), its tables in [`advance_build`](Self::advance_build).
     #[inline(never)]
-    fn switch_load(&mut self, coeffs: &Coeffs) -> LoadSwitch {
-        let active = self.model.load_n();
-        let to_n = coeffs.clamp_load_n(self.candidate_sum_n / f32::from(self.candidate_count));
-        self.candidate_count = 0;
-        self.candidate_sum_n = 0.0;
-        self.model = coeffs.load_model_clamped(to_n);
-        LoadSwitch {
-            from_n: active,
-            to_n,
+    fn start_build(&mut self, to_n: f32) {
+        let model = self.family.model_without_tables(to_n);
+        if self.second_active {
+            self.first = model;
+        } else {
+            self.second = model;
         }
+        self.build = TableBuild::new();
+        self.building = true;
+    }
+
+    /// Advance the spare's table build by the budget; at its end, make the
+    /// spare active.
+    #[inline(never)]
+    fn advance_build(&mut self) -> Option<LoadSwitch> {
+        let units = if self.build_units == 0 {
+            u16::MAX
+        } else {
+            self.build_units
+        };
+        let mut done = false;
+        // At most BUILD_UNITS_MAX units in all: with no budget, a few
+        // rounds of u16::MAX end it.
+        while !done {
+            let spare = if self.second_active {
+                &mut self.first
+            } else {
+                &mut self.second
+            };
+            done = spare.advance_build(&mut self.build, units);
+            if self.build_units != 0 {
+                break;
+            }
+        }
+        if !done {
+            return None;
+        }
+        let from_n = self.model().load_n();
+        self.second_active = !self.second_active;
+        self.building = false;
+        Some(LoadSwitch {
+            from_n,
+            to_n: self.model().load_n(),
+        })
     }
 }
 
@@ -307,5 +477,124 @@ mod tests {
         let u = t.update(&coeffs, f32::NAN, f32::INFINITY);
         assert!(u.non_finite_input && u.load_out_of_range);
         assert_eq!(t.load_n(), 600.0);
+    }
+
+    #[test]
+    fn a_load_alternating_across_the_active_load_never_switches() {
+        // Issue 14: 250/349 N about an active 300 N used to switch 200 times
+        // per 1000 samples (both sides counted toward one switch, to ~300 N).
+        let (coeffs, _) = setup();
+        let mut t = Tracker::new(
+            &coeffs,
+            TrackerConfig::DEFAULT_PRESSURE,
+            300.0,
+            Branch::Contraction,
+        )
+        .unwrap();
+        let mut switches = 0;
+        for k in 0..1000 {
+            let load = if k % 2 == 0 { 250.0 } else { 349.0 };
+            switches += usize::from(t.update(&coeffs, 0.1, load).load_switch.is_some());
+        }
+        assert_eq!(switches, 0);
+        assert_eq!(t.load_n(), 300.0);
+        // Two samples on one side then one on the other: still no switch.
+        for k in 0..999 {
+            let load = if k % 3 == 2 { 250.0 } else { 349.0 };
+            switches += usize::from(t.update(&coeffs, 0.1, load).load_switch.is_some());
+        }
+        assert_eq!(switches, 0);
+    }
+
+    #[test]
+    fn a_non_finite_load_restarts_the_debounce() {
+        let (coeffs, mut t) = setup();
+        let debounce = TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples;
+        // debounce − 1 samples at 300 N, a NaN, debounce − 1 again: no switch.
+        for _ in 0..2 {
+            for _ in 1..debounce {
+                assert!(t.update(&coeffs, 0.1, 300.0).load_switch.is_none());
+            }
+            let u = t.update(&coeffs, 0.1, f32::NAN);
+            assert!(u.non_finite_input && u.load_switch.is_none());
+        }
+        assert_eq!(t.load_n(), 100.0);
+        // Then a full run switches.
+        let mut switched = false;
+        for _ in 0..debounce {
+            switched |= t.update(&coeffs, 0.1, 300.0).load_switch.is_some();
+        }
+        assert!(switched);
+    }
+
+    #[test]
+    fn a_budgeted_build_keeps_the_old_model_until_the_new_one_is_complete() {
+        let (coeffs, mut instant) = setup();
+        let (_, mut t) = setup();
+        t.set_build_budget(12);
+        let debounce = usize::from(TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples);
+        let mut switched_at = None;
+        for k in 0..2000 {
+            let u = t.update(&coeffs, 0.1, 420.0);
+            instant.update(&coeffs, 0.1, 420.0);
+            if let Some(s) = u.load_switch {
+                assert_eq!(s.from_n, 100.0);
+                assert_eq!(s.to_n, 420.0);
+                switched_at = Some(k);
+                break;
+            }
+            // Until the switch the old model is active, then the new one.
+            assert_eq!(t.load_n(), 100.0);
+            assert_eq!(t.pending_load_n(), (k + 1 >= debounce).then_some(420.0));
+        }
+        let k = switched_at.expect("switched");
+        let bound = debounce + crate::load_model::BUILD_UNITS_MAX.div_ceil(12);
+        assert!(k > debounce && k < bound, "{k}");
+        assert_eq!(t.pending_load_n(), None);
+        // The same model as built at once.
+        assert_eq!(t.model(), instant.model());
+        assert_eq!(instant.load_n(), 420.0);
+    }
+
+    #[test]
+    fn a_build_is_cancelled_when_the_load_returns_to_the_active_one() {
+        let (coeffs, mut t) = setup();
+        t.set_build_budget(1);
+        for _ in 0..5 {
+            t.update(&coeffs, 0.1, 300.0);
+        }
+        assert_eq!(t.pending_load_n(), Some(300.0));
+        for _ in 0..5 {
+            assert!(t.update(&coeffs, 0.1, 100.0).load_switch.is_none());
+        }
+        assert_eq!(t.pending_load_n(), None);
+        for _ in 0..5000 {
+            assert!(t.update(&coeffs, 0.1, 100.0).load_switch.is_none());
+        }
+        assert_eq!(t.load_n(), 100.0);
+    }
+
+    #[test]
+    fn the_f32_family_agrees_with_the_f64_construction() {
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+        let family = FamilyF32::new(coeffs.family());
+        for load in [100.0, 137.0, 300.0, 512.5, 600.0] {
+            let (m32, m64) = (family.model(load), coeffs.load_model(load).unwrap());
+            for i in 0..=100 {
+                let x = m64.root_contraction()
+                    + (m64.max_contraction() - m64.root_contraction()) * i as f32 / 100.0;
+                for br in [Branch::Contraction, Branch::Expansion] {
+                    let (a, b) = (m32.pressure_mpa(x, br), m64.pressure_mpa(x, br));
+                    assert!((a - b).abs() < 2e-5, "{load} N, x {x}: {a} vs {b}");
+                }
+            }
+            for i in 0..=100 {
+                let p = 0.5 * i as f32 / 100.0;
+                for br in [Branch::Contraction, Branch::Expansion] {
+                    let (a, b) = (m32.contraction(p, br), m64.contraction(p, br));
+                    assert!((a - b).abs() < 2e-5, "{load} N, p {p}: {a} vs {b}");
+                }
+            }
+        }
     }
 }

@@ -208,11 +208,7 @@ impl ControllerConfig {
         integral_limit_mpa: 0.1,
         pressure_gain_per_mpa: 20.0,
         feedforward: Feedforward::Hysteresis,
-        tracker: TrackerConfig {
-            direction_deadband: 0.002,
-            load_threshold_n: 20.0,
-            load_debounce_samples: 5,
-        },
+        tracker: TrackerConfig::DEFAULT_CONTRACTION,
         safety: SafetyConfig {
             safe_state: SafeState::Exhaust,
             pressure_min_mpa: -0.05,

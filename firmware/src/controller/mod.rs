@@ -43,8 +43,10 @@
 //!
 //! # Work per step
 //! Three sensor reads, a fixed number of comparisons, one forward model
-//! evaluation and two inverse evaluations (the plausibility band) and, on
-//! a load switch of the tracker, one [`pam_core::LoadModel`] rebuild. No
+//! evaluation and two inverse evaluations (the plausibility band) and,
+//! while the tracker builds a new load's model, at most
+//! [`TABLE_BUILD_UNITS_PER_STEP`] units of its table build (the old model
+//! stays active until the build is complete). No
 //! allocation, no loops over data, no panicking operation (no indexing by
 //! runtime values, no division by a runtime value other than in `f32`,
 //! which saturates to ±inf or NaN and is clamped).
@@ -65,6 +67,15 @@ use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, Valve};
 use law::Law;
 use monitor::Monitor;
 use pam_core::{Branch, Coeffs, Tracker, Update};
+
+/// Work units of a load switch's inverse-table build per step (one forward
+/// evaluation or one Newton step each, see [`Tracker::set_build_budget`]).
+/// Chosen with bench-m4 so that the step's worst case stays under 2 000
+/// instructions; a complete build then takes at most
+/// `pam_core::load_model::BUILD_UNITS_MAX / 12` = 147 periods (measured
+/// 36–60 at 1 kHz on the default model: most entries converge in a few Newton
+/// steps), during which the previous load's model stays active.
+pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 12;
 
 /// What one step did; the firmware logs `new_fault` and `recovered`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,8 +133,12 @@ impl Controller {
         initial_load_n: f32,
     ) -> Result<Controller, ConfigError> {
         config.validate()?;
-        let tracker = Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
-            .map_err(ConfigError::Tracker)?;
+        let mut tracker =
+            Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
+                .map_err(ConfigError::Tracker)?;
+        // A load switch's table build, spread over the periods that follow
+        // it: the step's worst case stays bounded (bench-m4 `load_switch`).
+        tracker.set_build_budget(TABLE_BUILD_UNITS_PER_STEP);
         Ok(Controller {
             monitor: Monitor::new(&config.safety, &coeffs, config.dt_s),
             ki_dt: config.ki_mpa_per_s * config.dt_s,
