@@ -47,6 +47,10 @@ const BUILD_KNOTS: usize = 33;
 /// Safeguarded Newton iterations per table entry while building.
 const BUILD_ITERATIONS: usize = 12;
 
+/// Newton steps of the inverse while the tables are being built
+/// ([`LoadModel::inverse_ready`]).
+pub const FALLBACK_NEWTON_STEPS: usize = 10;
+
 /// A Newton step of the table build that moves contraction by less than
 /// this ends the entry (a few `f32` ulps of a contraction near 0.1; the
 /// table is then as precise as `f32` allows).
@@ -213,6 +217,9 @@ pub struct LoadModel {
     /// Contraction at pressures `k·Pmax/INVERSE_INTERVALS` on each branch,
     /// `[contraction, expansion]`; the last entry is the left limit at `Pmax`.
     inverse_table: [[f32; INVERSE_INTERVALS + 1]; 2],
+    /// Both inverse tables are complete (else [`Self::contraction`] solves
+    /// by bisection, see [`Self::inverse_ready`]).
+    tables_ready: bool,
 }
 
 impl LoadModel {
@@ -261,6 +268,7 @@ impl LoadModel {
             max_pressure_mpa,
             intervals_per_mpa: INVERSE_INTERVALS as f32 / max_pressure_mpa,
             inverse_table: [[root; INVERSE_INTERVALS + 1]; 2],
+            tables_ready: false,
         }
     }
 
@@ -399,6 +407,7 @@ impl LoadModel {
             };
             Stage::Hull
         } else {
+            self.tables_ready = true;
             Stage::Done
         };
     }
@@ -499,12 +508,57 @@ impl LoadModel {
         )
     }
 
+    /// Whether the inverse tables are complete. A model whose tables a
+    /// [`crate::Tracker`] is still building (after a load switch with a
+    /// build budget) evaluates forward at full speed, but its
+    /// [`Self::contraction`] falls back to [`FALLBACK_NEWTON_STEPS`]
+    /// safeguarded Newton steps on the branch (about four times the table
+    /// inverse's cost).
+    pub fn inverse_ready(&self) -> bool {
+        self.tables_ready
+    }
+
+    /// The inverse without tables: the contraction where the unclamped
+    /// branch crosses `pressure_mpa` (clamped to `[0, Pmax]`, NaN → 0) in
+    /// the stroke, by [`FALLBACK_NEWTON_STEPS`] bracketed Newton steps with
+    /// bisection fallback from a linear first guess. Where the branch
+    /// increases this is the table inverse's answer; at the clamped branch
+    /// ends it may differ by the dip the module docs describe.
+    #[inline(never)]
+    fn contraction_without_tables(&self, pressure_mpa: f32, branch: Branch) -> f32 {
+        let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
+        if p >= self.max_pressure_mpa {
+            return self.max_contraction;
+        }
+        let sign = branch.offset_sign();
+        let (mut lo, mut hi) = (self.root, self.max_contraction);
+        let mut x = lo + (hi - lo) * p / self.max_pressure_mpa;
+        for _ in 0..FALLBACK_NEWTON_STEPS {
+            let (g, dg) = self.branch_and_slope(x, sign);
+            if g <= p {
+                lo = x;
+            } else {
+                hi = x;
+            }
+            let next = x + (p - g) / dg;
+            x = if next > lo && next < hi {
+                next
+            } else {
+                0.5 * (lo + hi)
+            };
+        }
+        clamp(x, self.root, self.max_contraction)
+    }
+
     /// Inverse model: the contraction at which `branch` has `pressure_mpa`.
     ///
     /// Returns a value in `[R_i, Rx_i]`, never NaN; see the module docs for
     /// the branch ends. Fixed work: one table look-up, one interpolation, one
     /// Newton step (two divisions, one square root).
     pub fn contraction(&self, pressure_mpa: f32, branch: Branch) -> f32 {
+        if !self.tables_ready {
+            return self.contraction_without_tables(pressure_mpa, branch);
+        }
         let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
         if p >= self.max_pressure_mpa {
             return self.max_contraction;

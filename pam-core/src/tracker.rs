@@ -17,21 +17,24 @@
 //!
 //! # Work per sample
 //! A few comparisons. A load switch needs the new load's [`LoadModel`]:
-//! its coefficients (eqs. 16–21, in `f32`: four divisions) and its two
-//! inverse tables (at most [`BUILD_UNITS_MAX`](crate::load_model::BUILD_UNITS_MAX)
-//! work units of one forward evaluation or one Newton step each). By default
-//! ([`Tracker::new`]) the tables are built within the update that decides the
-//! switch, as host tools want. A real-time caller sets a budget with
-//! [`Tracker::set_build_budget`]: the tables are then built into a spare
-//! model a bounded number of units per update while the previous model
-//! stays active, and the switch (the [`Update::load_switch`]) happens on the
-//! update that completes them — no update does more than its budget.
+//! its coefficients (eqs. 16–21, in `f32`: four divisions), which the switch
+//! makes active at once, and its two inverse tables (at most
+//! [`BUILD_UNITS_MAX`](crate::load_model::BUILD_UNITS_MAX) work units of one
+//! forward evaluation or one Newton step each). By default
+//! ([`Tracker::new`]) the tables are built within the update that switches,
+//! as host tools want. A real-time caller sets a budget with
+//! [`Tracker::set_build_budget`]: the tables are then built a bounded
+//! number of units per update, and until they are complete
+//! ([`Tracker::inverse_ready`]) the model evaluates forward (eqs. 25/26) at
+//! full speed while its inverse falls back to a slow bisection, which a
+//! real-time caller skips. No update does more than its budget.
 //! Non-finite samples are ignored (and reported), never stored.
 
 use crate::branch::Branch;
 use crate::coeffs::Coeffs;
 use crate::error::Error;
 use crate::load_model::{FamilyF32, LoadModel, TableBuild};
+
 
 /// Tuning of the tracker.
 ///
@@ -138,8 +141,7 @@ pub struct Update {
     pub non_finite_input: bool,
 }
 
-/// Tracks the branch and the active load; owns the active [`LoadModel`] and
-/// a spare one that the next load's model is built into.
+/// Tracks the branch and the active load; owns the active [`LoadModel`].
 #[derive(Clone, Debug)]
 pub struct Tracker {
     config: TrackerConfig,
@@ -152,27 +154,22 @@ pub struct Tracker {
     extreme: f32,
     /// The load family in `f32`: a new load's coefficients without `f64`.
     family: FamilyF32,
-    /// Two models: the active one and the spare (the next load's, while
-    /// it is built). A switch flips `second_active`, no copy.
-    first: LoadModel,
-    second: LoadModel,
-    second_active: bool,
-    /// The spare's table build; `building` while it is in progress.
+    model: LoadModel,
+    /// The active model's table build, while `!model.inverse_ready()`.
     build: TableBuild,
-    building: bool,
     /// Work units of the table build per update; 0: all at once.
     build_units: u16,
     candidate_count: u16,
     candidate_sum_n: f32,
-    /// The side of the active (or pending) load the candidate's samples lie on.
+    /// The side of the active load the candidate's samples lie on.
     candidate_above: bool,
 }
 
 impl Tracker {
     /// A tracker starting on `branch` with the model at `initial_load_n`
-    /// (clamped to the calibrated range). A load switch builds the new
-    /// model within the update that decides it (no build budget; see
-    /// [`set_build_budget`](Self::set_build_budget)).
+    /// (clamped to the calibrated range), its tables built. A load switch
+    /// builds the new model's tables within the update that switches (no
+    /// build budget; see [`set_build_budget`](Self::set_build_budget)).
     pub fn new(
         coeffs: &Coeffs,
         config: TrackerConfig,
@@ -181,17 +178,13 @@ impl Tracker {
     ) -> Result<Tracker, Error> {
         config.validate()?;
         let family = FamilyF32::new(coeffs.family());
-        let model = family.model(coeffs.clamp_load_n(initial_load_n));
         Ok(Tracker {
             config,
             branch,
             extreme: f32::NAN,
+            model: family.model(coeffs.clamp_load_n(initial_load_n)),
             family,
-            second: model.clone(),
-            first: model,
-            second_active: false,
             build: TableBuild::new(),
-            building: false,
             build_units: 0,
             candidate_count: 0,
             candidate_sum_n: 0.0,
@@ -201,11 +194,11 @@ impl Tracker {
 
     /// Bound the work of a load switch per [`update`](Self::update): at most
     /// `units_per_update` work units of the new model's table build (each
-    /// one forward evaluation or one Newton step: one division, one square
-    /// root and a few dozen `f32` operations); 0 builds at once. The build
-    /// then spans up to
-    /// `BUILD_UNITS_MAX / units_per_update` updates, during which the active
-    /// model stays the old one.
+    /// one forward evaluation, one table bracket or one Newton step: at most
+    /// one division, one square root and a few dozen `f32` operations); 0
+    /// builds at once. The build then spans up to
+    /// `BUILD_UNITS_MAX / units_per_update` updates, during which
+    /// [`inverse_ready`](Self::inverse_ready) is false.
     pub fn set_build_budget(&mut self, units_per_update: u16) {
         self.build_units = units_per_update;
     }
@@ -218,38 +211,24 @@ impl Tracker {
     /// The active per-load model.
     #[inline]
     pub fn model(&self) -> &LoadModel {
-        if self.second_active {
-            &self.second
-        } else {
-            &self.first
-        }
+        &self.model
+    }
+
+    /// Whether the active model's inverse tables are complete (always,
+    /// without a build budget); see [`LoadModel::inverse_ready`].
+    #[inline]
+    pub fn inverse_ready(&self) -> bool {
+        self.model.inverse_ready()
     }
 
     /// The active load, N.
     pub fn load_n(&self) -> f32 {
-        self.model().load_n()
-    }
-
-    /// The load whose model is being built (the switch in progress), N.
-    pub fn pending_load_n(&self) -> Option<f32> {
-        if self.building {
-            Some(self.spare().load_n())
-        } else {
-            None
-        }
+        self.model.load_n()
     }
 
     /// The configuration.
     pub fn config(&self) -> &TrackerConfig {
         &self.config
-    }
-
-    fn spare(&self) -> &LoadModel {
-        if self.second_active {
-            &self.first
-        } else {
-            &self.second
-        }
     }
 
     /// Feed one sample of the drive signal and the load.
@@ -262,7 +241,7 @@ impl Tracker {
         }
         if load_n.is_finite() {
             out.load_out_of_range = !coeffs.load_in_range(load_n);
-            self.update_load(coeffs, load_n);
+            out.load_switch = self.update_load(coeffs, load_n);
         } else {
             // A non-finite load is no evidence of a load change: the run of
             // consecutive samples beyond the threshold ends here.
@@ -270,8 +249,8 @@ impl Tracker {
             out.non_finite_input = true;
             out.load_out_of_range = true;
         }
-        if self.building {
-            out.load_switch = self.advance_build();
+        if !self.model.inverse_ready() {
+            self.advance_build();
         }
         out
     }
@@ -303,25 +282,19 @@ impl Tracker {
         self.candidate_sum_n = 0.0;
     }
 
-    /// The debounce; may start a table build. `load_n` is finite.
-    fn update_load(&mut self, coeffs: &Coeffs, load_n: f32) {
+    /// The debounce. `load_n` is finite.
+    fn update_load(&mut self, coeffs: &Coeffs, load_n: f32) -> Option<LoadSwitch> {
         let target = coeffs.clamp_load_n(load_n);
-        // The load the model is heading to: the pending one during a build.
-        let reference = if self.building {
-            self.spare().load_n()
-        } else {
-            self.model().load_n()
-        };
-        let threshold = self.config.load_threshold_n;
-        if (target - reference).abs() <= threshold {
+        let active = self.model.load_n();
+        if (target - active).abs() <= self.config.load_threshold_n {
             self.reset_candidate();
-            return;
+            return None;
         }
-        // Only a run of samples on one side of the reference is a load
+        // Only a run of samples on one side of the active load is a load
         // change: samples alternating across it (a load oscillating about
         // the active one) restart the run instead of adding up to a switch
         // to their mean, which is the active load again.
-        let above = target > reference;
+        let above = target > active;
         if self.candidate_count > 0 && above != self.candidate_above {
             self.reset_candidate();
         }
@@ -329,65 +302,36 @@ impl Tracker {
         self.candidate_count = self.candidate_count.saturating_add(1);
         self.candidate_sum_n += target;
         if self.candidate_count < self.config.load_debounce_samples {
-            return;
+            return None;
         }
+        Some(self.switch_load(coeffs))
+    }
+
+    /// The rare path of [`update_load`](Self::update_load): the model at the
+    /// debounced mean load, its coefficients now (fixed work), its tables in
+    /// [`advance_build`](Self::advance_build). Out of line so that the
+    /// per-sample path does not carry its stack frame.
+    #[cold]
+    #[inline(never)]
+    fn switch_load(&mut self, coeffs: &Coeffs) -> LoadSwitch {
+        let from_n = self.model.load_n();
         let to_n = coeffs.clamp_load_n(self.candidate_sum_n / f32::from(self.candidate_count));
         self.reset_candidate();
-        if self.building && (to_n - self.model().load_n()).abs() <= threshold {
-            // Back at the active load before the pending model was done.
-            self.building = false;
-            return;
-        }
-        self.start_build(to_n);
-    }
-
-    /// Start building the model at `to_n` into the spare: its coefficients
-    /// now (fixed work), its tables in [`advance_build`](Self::advance_build).
-    #[inline(never)]
-    fn start_build(&mut self, to_n: f32) {
-        let model = self.family.model_without_tables(to_n);
-        if self.second_active {
-            self.first = model;
-        } else {
-            self.second = model;
-        }
+        self.model = self.family.model_without_tables(to_n);
         self.build = TableBuild::new();
-        self.building = true;
+        LoadSwitch { from_n, to_n }
     }
 
-    /// Advance the spare's table build by the budget; at its end, make the
-    /// spare active.
+    /// Advance the active model's table build by the budget (all of it
+    /// without a budget: at most [`BUILD_UNITS_MAX`](crate::load_model::BUILD_UNITS_MAX) units).
     #[inline(never)]
-    fn advance_build(&mut self) -> Option<LoadSwitch> {
+    fn advance_build(&mut self) {
         let units = if self.build_units == 0 {
             u16::MAX
         } else {
             self.build_units
         };
-        let mut done = false;
-        // At most BUILD_UNITS_MAX units in all: with no budget, a few
-        // rounds of u16::MAX end it.
-        while !done {
-            let spare = if self.second_active {
-                &mut self.first
-            } else {
-                &mut self.second
-            };
-            done = spare.advance_build(&mut self.build, units);
-            if self.build_units != 0 {
-                break;
-            }
-        }
-        if !done {
-            return None;
-        }
-        let from_n = self.model().load_n();
-        self.second_active = !self.second_active;
-        self.building = false;
-        Some(LoadSwitch {
-            from_n,
-            to_n: self.model().load_n(),
-        })
+        self.model.advance_build(&mut self.build, units);
     }
 }
 
@@ -528,50 +472,49 @@ mod tests {
     }
 
     #[test]
-    fn a_budgeted_build_keeps_the_old_model_until_the_new_one_is_complete() {
+    fn a_budgeted_build_switches_the_forward_model_at_once_and_the_inverse_later() {
         let (coeffs, mut instant) = setup();
         let (_, mut t) = setup();
         t.set_build_budget(12);
         let debounce = usize::from(TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples);
-        let mut switched_at = None;
+        let mut ready_at = None;
         for k in 0..2000 {
             let u = t.update(&coeffs, 0.1, 420.0);
-            instant.update(&coeffs, 0.1, 420.0);
-            if let Some(s) = u.load_switch {
-                assert_eq!(s.from_n, 100.0);
-                assert_eq!(s.to_n, 420.0);
-                switched_at = Some(k);
-                break;
+            let v = instant.update(&coeffs, 0.1, 420.0);
+            // Both switch on the same sample, after the debounce.
+            assert_eq!(u.load_switch, v.load_switch, "{k}");
+            assert_eq!(u.load_switch.is_some(), k + 1 == debounce, "{k}");
+            assert!(instant.inverse_ready());
+            if k + 1 >= debounce {
+                assert_eq!(t.load_n(), 420.0);
+                // The forward model is the new load's at once.
+                for x in [0.05, 0.1, 0.15] {
+                    let br = Branch::Contraction;
+                    assert_eq!(
+                        t.model().pressure_mpa(x, br),
+                        instant.model().pressure_mpa(x, br)
+                    );
+                }
+                if t.inverse_ready() {
+                    ready_at = Some(k);
+                    break;
+                }
+                // The inverse meanwhile: slow, but the same to the tolerance.
+                for p in [0.0, 0.1, 0.3, 0.45] {
+                    for br in [Branch::Contraction, Branch::Expansion] {
+                        let (a, b) = (t.model().contraction(p, br), instant.model().contraction(p, br));
+                        assert!((a - b).abs() < 1e-3, "{p} {br:?}: {a} vs {b}");
+                    }
+                }
+            } else {
+                assert!(t.inverse_ready());
             }
-            // Until the switch the old model is active, then the new one.
-            assert_eq!(t.load_n(), 100.0);
-            assert_eq!(t.pending_load_n(), (k + 1 >= debounce).then_some(420.0));
         }
-        let k = switched_at.expect("switched");
+        let k = ready_at.expect("tables built");
         let bound = debounce + crate::load_model::BUILD_UNITS_MAX.div_ceil(12);
         assert!(k > debounce && k < bound, "{k}");
-        assert_eq!(t.pending_load_n(), None);
         // The same model as built at once.
         assert_eq!(t.model(), instant.model());
-        assert_eq!(instant.load_n(), 420.0);
-    }
-
-    #[test]
-    fn a_build_is_cancelled_when_the_load_returns_to_the_active_one() {
-        let (coeffs, mut t) = setup();
-        t.set_build_budget(1);
-        for _ in 0..5 {
-            t.update(&coeffs, 0.1, 300.0);
-        }
-        assert_eq!(t.pending_load_n(), Some(300.0));
-        for _ in 0..5 {
-            assert!(t.update(&coeffs, 0.1, 100.0).load_switch.is_none());
-        }
-        assert_eq!(t.pending_load_n(), None);
-        for _ in 0..5000 {
-            assert!(t.update(&coeffs, 0.1, 100.0).load_switch.is_none());
-        }
-        assert_eq!(t.load_n(), 100.0);
     }
 
     #[test]

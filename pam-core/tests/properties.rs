@@ -117,3 +117,105 @@ proptest! {
         prop_assert_eq!(t.branch(), br);
     }
 }
+
+mod memory_inverse {
+    use super::*;
+    use pam_core::effects::{NonLocalMemory, Reversal, ReversalStack};
+
+    /// A stack left by a pressure history through `turns` (alternating
+    /// direction, starting upwards from 0 MPa): at each turn the curve's
+    /// contraction there is pushed as the reversal, as a controller or the
+    /// simulator does.
+    fn history(
+        mem: &NonLocalMemory,
+        m: &pam_core::LoadModel,
+        turns: &[f32],
+    ) -> (ReversalStack<8>, Branch) {
+        let mut stack = ReversalStack::<8>::default();
+        let mut br = Branch::Contraction;
+        let mut last = 0.0f32;
+        for &p in turns {
+            let rising = p > last;
+            if rising != (br == Branch::Contraction) {
+                // The pressure turned at `last`: push it on the old branch's curve.
+                let x = stack.contraction(mem, m, last, br, 1.0);
+                stack.push(Reversal {
+                    pressure_mpa: last,
+                    contraction: x,
+                });
+                br = br.opposite();
+            }
+            stack.contraction(mem, m, p, br, 1.0);
+            last = p;
+        }
+        (stack, br)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(3000))]
+
+        /// The memory inverse undoes the memory's forward curve: at the
+        /// pressure it returns, the curve (with its own wiping-out) is at the
+        /// contraction asked for (to within the curve's jumps, where a clamped
+        /// branch is flat), or the contraction lies beyond the curve's reach
+        /// and the pressure is at that end.
+        #[test]
+        fn memory_inverse_reaches_the_contraction(
+            turns in proptest::collection::vec(0.0f32..=0.5, 0..10),
+            t in 0.0f32..=1.0,
+            load in 100.0f32..=600.0,
+            shape in 0.5f32..=20.0,
+            merge_span in prop_oneof![Just(1.0f32), 0.02f32..=1.0],
+            br in branch(),
+        ) {
+            let m = coeffs().load_model(load).unwrap();
+            let mem = NonLocalMemory { shape, merge_span };
+            let (stack, last_br) = history(&mem, &m, &turns);
+            // Keep going on the current branch or reverse at the last point.
+            let mut stack = stack;
+            if br != last_br {
+                let p = *turns.last().unwrap_or(&0.0);
+                let x = stack.contraction(&mem, &m, p, last_br, 1.0);
+                stack.push(Reversal { pressure_mpa: p, contraction: x });
+            }
+            let x_ref = m.root_contraction() + t * (m.max_contraction() - m.root_contraction());
+            let p = stack.inverse_pressure_mpa(&mem, &m, x_ref, br, 1.0);
+            prop_assert!(p.is_finite() && (0.0..=m.max_pressure_mpa()).contains(&p), "p {p}");
+            let at = |p: f32| {
+                let mut trial = stack;
+                trial.contraction(&mem, &m, p, br, 1.0)
+            };
+            // The curve is monotone but not continuous (the branch inverse
+            // jumps where a clamped branch is flat, e.g. just below Pmax):
+            // x_ref lies between the curve just below and just above p.
+            let (tol, dp) = (1e-3, 1e-3);
+            let pmax = m.max_pressure_mpa();
+            let x = at(p);
+            let ok = if x_ref < at(0.0) - tol {
+                p <= dp
+            } else if x_ref > at(pmax) + tol {
+                p >= pmax - dp
+            } else {
+                at((p - dp).max(0.0)) - tol <= x_ref && x_ref <= at((p + dp).min(pmax)) + tol
+            };
+            prop_assert!(ok, "x_ref {x_ref} -> p {p} -> x {x}; stack {:?}", stack.points());
+        }
+
+        #[test]
+        fn memory_inverse_is_finite_on_any_input(
+            x in any_f32(),
+            load in any_f32(),
+            turns in proptest::collection::vec(any_f32(), 0..6),
+            br in branch(),
+        ) {
+            let m = coeffs().load_model_clamped(load);
+            let mem = NonLocalMemory::with_shape(2.0);
+            let mut stack = ReversalStack::<8>::default();
+            for (i, &p) in turns.iter().enumerate() {
+                stack.push(Reversal { pressure_mpa: p, contraction: 0.01 * i as f32 });
+            }
+            let p = stack.inverse_pressure_mpa(&mem, &m, x, br, 1.0);
+            prop_assert!(p.is_finite() && (0.0..=m.max_pressure_mpa()).contains(&p), "p {p}");
+        }
+    }
+}

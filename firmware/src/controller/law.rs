@@ -22,10 +22,9 @@ use pam_core::{Branch, LoadModel};
 /// remembers (nested minor loops); older ones are dropped.
 pub const MEMORY_DEPTH: usize = 8;
 
-/// Bisection steps of the minor-loop feedforward's inverse: `Pmax`
-/// (0.5 MPa) over 2²⁰ is 5·10⁻⁷ MPa, far below the 2·10⁻⁴ MPa of
-/// pam-core's inverse table (`pam_core::load_model::INVERSE_TOLERANCE_MPA`).
-pub const MEMORY_INVERSE_STEPS: usize = 20;
+/// Bisection steps of the minor-loop feedforward's inverse (pam-core's
+/// [`ReversalStack::inverse_pressure_mpa`], in branch contraction).
+pub use pam_core::effects::memory::MEMORY_INVERSE_STEPS;
 
 /// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
 /// with bad bounds).
@@ -187,7 +186,7 @@ impl MemoryState {
             if backing_off {
                 let mut trial = self.stack;
                 trial.push(e);
-                return inverse_mpa(&trial, params, model, x_ref, branch.opposite());
+                return trial.inverse_pressure_mpa(params, model, x_ref, branch.opposite(), 1.0);
             }
         }
         let p_mpa = if self.stack.points().is_empty() {
@@ -195,7 +194,8 @@ impl MemoryState {
             // inverse is the forward model, eqs. (25)/(26).
             model.pressure_mpa(x_ref, branch)
         } else {
-            inverse_mpa(&self.stack, params, model, x_ref, branch)
+            self.stack
+                .inverse_pressure_mpa(params, model, x_ref, branch, 1.0)
         };
         self.stack.wipe_out(p_mpa, branch);
         // At or beyond the sweep's extreme: the turning point of the next reversal.
@@ -205,32 +205,4 @@ impl MemoryState {
         });
         p_mpa
     }
-}
-
-/// The pressure in `[0, Pmax]` at which the memory's curve `x(p)` for
-/// `branch` reaches `x_ref`: bisection of [`MEMORY_INVERSE_STEPS`] steps, each
-/// on a copy of `stack` (a candidate applies its own wiping-out, so a minor
-/// loop that closes within this step is inverted correctly).
-///
-/// Not inlined: it is called from two places, and its body inlines
-/// pam-core's table inverse and `powf` (flash budget).
-#[inline(never)]
-fn inverse_mpa(
-    stack: &ReversalStack<MEMORY_DEPTH>,
-    params: &NonLocalMemory,
-    model: &LoadModel,
-    x_ref: f32,
-    branch: Branch,
-) -> f32 {
-    let (mut lo, mut hi) = (0.0f32, model.max_pressure_mpa());
-    for _ in 0..MEMORY_INVERSE_STEPS {
-        let mid = 0.5 * (lo + hi);
-        let mut trial = *stack;
-        if trial.contraction(params, model, mid, branch, 1.0) <= x_ref {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
 }

@@ -44,9 +44,9 @@
 //! # Work per step
 //! Three sensor reads, a fixed number of comparisons, one forward model
 //! evaluation and two inverse evaluations (the plausibility band) and,
-//! while the tracker builds a new load's model, at most
-//! [`TABLE_BUILD_UNITS_PER_STEP`] units of its table build (the old model
-//! stays active until the build is complete). No
+//! after a load switch, at most [`TABLE_BUILD_UNITS_PER_STEP`] units of the
+//! new model's inverse-table build per step until it is complete (the new
+//! model's forward evaluation is active from the switch). No
 //! allocation, no loops over data, no panicking operation (no indexing by
 //! runtime values, no division by a runtime value other than in `f32`,
 //! which saturates to ±inf or NaN and is clamped).
@@ -72,9 +72,10 @@ use pam_core::{Branch, Coeffs, Tracker, Update};
 /// evaluation or one Newton step each, see [`Tracker::set_build_budget`]).
 /// Chosen with bench-m4 so that the step's worst case stays under 2 000
 /// instructions; a complete build then takes at most
-/// `pam_core::load_model::BUILD_UNITS_MAX / 12` = 147 periods (measured
-/// 36–60 at 1 kHz on the default model: most entries converge in a few Newton
-/// steps), during which the previous load's model stays active.
+/// `pam_core::load_model::BUILD_UNITS_MAX / 12` = 147 periods. The new
+/// load's forward model (the feedforward) is active from the switch; while
+/// its tables are built the model check is paused and the memory
+/// feedforward's branch inverse is pam-core's slower table-free one.
 pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 12;
 
 /// What one step did; the firmware logs `new_fault` and `recovered`.
@@ -292,6 +293,11 @@ impl Controller {
             .update(&self.coeffs, desired_contraction, load_n);
         if step.tracker.load_switch.is_some() {
             self.law.load_switched();
+            self.monitor.load_switched();
+        } else if !self.tracker.inverse_ready() {
+            // The new load's inverse tables are still being built: the
+            // model check (two inverses) stays paused until they are, and
+            // for its settling time after.
             self.monitor.load_switched();
         }
         step.branch = self.tracker.branch();

@@ -57,6 +57,26 @@ use crate::math::clamp;
 
 use super::branch_contraction;
 
+/// Bisection steps of [`ReversalStack::inverse_pressure_mpa`] in branch
+/// contraction: a stroke below 1 over 2²⁴ is 6·10⁻⁸ of contraction, the
+/// resolution of an `f32` contraction near 0.1.
+pub const MEMORY_INVERSE_STEPS: usize = 24;
+
+/// The pressure on `branch` at branch contraction `x` with the ellipse
+/// offset scaled by `offset_scale` (eqs. 25/26; 1: the paper's model), in
+/// `[0, Pmax]`: the forward counterpart of [`branch_contraction`].
+fn branch_pressure_mpa(model: &LoadModel, x: f32, branch: Branch, offset_scale: f32) -> f32 {
+    if offset_scale == 1.0 {
+        return model.pressure_mpa(x, branch);
+    }
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+    clamp(
+        model.constraint_pressure_mpa(x) + k * model.offset_mpa(x),
+        0.0,
+        model.max_pressure_mpa(),
+    )
+}
+
 /// Parameters of the non-local memory.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -301,52 +321,7 @@ impl<const N: usize> ReversalStack<N> {
                 return Some(s);
             }
         }
-        let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
-        let (b_t, d_t) = match target {
-            Some(t) => {
-                let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
-                (b_t, t.contraction - b_t)
-            }
-            // The first reversal's curve closes on the end of the major loop.
-            None => {
-                let end = match branch {
-                    Branch::Contraction => model.max_pressure_mpa(),
-                    Branch::Expansion => 0.0,
-                };
-                (branch_contraction(model, end, branch, offset_scale), 0.0)
-            }
-        };
-        let span = b_r - b_t;
-        let degenerate = !(span.abs() > 1e-6);
-        let inv_progress = if degenerate {
-            0.0
-        } else if span > 0.0 {
-            (1.0 / span).max(blend.inv_merge)
-        } else {
-            (1.0 / span).min(-blend.inv_merge)
-        };
-        let wipe_sign = match branch {
-            Branch::Contraction => 1.0,
-            Branch::Expansion => -1.0,
-        };
-        let s = Segment {
-            branch,
-            scale_bits,
-            load_bits,
-            max_contraction_bits,
-            merge_bits,
-            wipe_sign,
-            wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
-            b_r,
-            inv_progress,
-            d_t,
-            // A degenerate loop sits at the target's offset (s is 1 there).
-            d_rt: if degenerate {
-                0.0
-            } else {
-                (origin.contraction - b_r) - d_t
-            },
-        };
+        let s = Segment::new(blend, model, origin, target, branch, offset_scale);
         self.segment = Some(s);
         Some(s)
     }
@@ -370,6 +345,71 @@ impl<const N: usize> ReversalStack<N> {
             return x_branch;
         };
         seg.eval(blend, model, x_branch)
+    }
+
+    /// The inverse of [`Self::contraction`]: the pressure in `[0, Pmax]` at
+    /// which the memory's curve for `branch` reaches `contraction` (the
+    /// feedforward of a controller that follows the memory). The stack is
+    /// not changed; apply [`Self::wipe_out`] with the result to move on.
+    ///
+    /// Minor loops that `contraction` lies beyond (past the contraction of
+    /// the point below the top, in the direction of `branch`) close first,
+    /// as [`Self::wipe_out`] closes them for a pressure past that point's.
+    /// On the remaining loop the curve is `x = B + d_t + (d_r − d_t)·w(s(B))`
+    /// in the branch contraction `B`, which is solved for `B` by
+    /// [`MEMORY_INVERSE_STEPS`] bisection steps (no table inverse in them:
+    /// a few `f32` operations and one division each); the pressure is then
+    /// the forward model at `B`, eqs. (25)/(26). With no reversal left it is
+    /// the forward model at `contraction`. Assumes, as the wiping-out rules
+    /// do, that the curve rises with pressure on the contraction branch and
+    /// falls with it on the expansion branch. Never NaN (NaN `contraction`
+    /// maps to `R_i`).
+    ///
+    /// Fixed work: at most `N/2 + 1` comparisons, two branch inverses (the
+    /// loop's ends), the bisection and one forward evaluation.
+    pub fn inverse_pressure_mpa(
+        &self,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        contraction: f32,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> f32 {
+        let (lo_x, hi_x) = (model.root_contraction(), model.max_contraction());
+        let x_ref = clamp(contraction, lo_x, hi_x);
+        let mut len = self.len.min(N);
+        for _ in 0..N / 2 + 1 {
+            let Some(target) = len.checked_sub(2).and_then(|i| self.points.get(i)) else {
+                break;
+            };
+            let passed = match branch {
+                Branch::Contraction => x_ref > target.contraction,
+                Branch::Expansion => x_ref < target.contraction,
+            };
+            if !passed {
+                break;
+            }
+            len -= 2;
+        }
+        let origin = len.checked_sub(1).and_then(|i| self.points.get(i));
+        let Some(&origin) = origin else {
+            return branch_pressure_mpa(model, x_ref, branch, offset_scale);
+        };
+        let target = len.checked_sub(2).and_then(|i| self.points.get(i)).copied();
+        let blend = params.blend_coeffs();
+        let seg = Segment::new(blend, model, origin, target, branch, offset_scale);
+        // x(B) is non-decreasing in B: bisection for the largest B with
+        // x(B) <= x_ref.
+        let (mut lo, mut hi) = (lo_x, hi_x);
+        for _ in 0..MEMORY_INVERSE_STEPS {
+            let mid = 0.5 * (lo + hi);
+            if seg.eval(blend, model, mid) <= x_ref {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        branch_pressure_mpa(model, 0.5 * (lo + hi), branch, offset_scale)
     }
 
     /// [`Self::contraction`] for the [`Simulator`](crate::Simulator), given
@@ -425,6 +465,68 @@ impl<const N: usize> ReversalStack<N> {
 }
 
 impl Segment {
+    /// The minor loop from `origin` towards `target` (the end of the major
+    /// loop when `None`): two branch inverses.
+    fn new(
+        blend: Blend,
+        model: &LoadModel,
+        origin: Reversal,
+        target: Option<Reversal>,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> Segment {
+        let scale_bits = offset_scale.to_bits();
+        let load_bits = model.load_n().to_bits();
+        let max_contraction_bits = model.max_contraction().to_bits();
+        let merge_bits = blend.inv_merge.to_bits();
+            let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
+            let (b_t, d_t) = match target {
+                Some(t) => {
+                    let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
+                    (b_t, t.contraction - b_t)
+                }
+                // The first reversal's curve closes on the end of the major loop.
+                None => {
+                    let end = match branch {
+                        Branch::Contraction => model.max_pressure_mpa(),
+                        Branch::Expansion => 0.0,
+                    };
+                    (branch_contraction(model, end, branch, offset_scale), 0.0)
+                }
+            };
+            let span = b_r - b_t;
+            let degenerate = !(span.abs() > 1e-6);
+            let inv_progress = if degenerate {
+                0.0
+            } else if span > 0.0 {
+                (1.0 / span).max(blend.inv_merge)
+            } else {
+                (1.0 / span).min(-blend.inv_merge)
+            };
+            let wipe_sign = match branch {
+                Branch::Contraction => 1.0,
+                Branch::Expansion => -1.0,
+            };
+            Segment {
+                branch,
+                scale_bits,
+                load_bits,
+                max_contraction_bits,
+                merge_bits,
+                wipe_sign,
+                wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
+                b_r,
+                inv_progress,
+                d_t,
+                // A degenerate loop sits at the target's offset (s is 1 there).
+                d_rt: if degenerate {
+                    0.0
+                } else {
+                    (origin.contraction - b_r) - d_t
+                },
+            }
+    }
+
     /// `B(p) + d_t + (d_r − d_t)·w(s)` for `B(p) = x_branch`, within the
     /// stroke; `s = 1 + (B(p) − B(p_r))·inv_progress` (clamped to `[0, 1]`
     /// by the blend).
