@@ -159,6 +159,8 @@ pub struct Tracker {
     build: TableBuild,
     /// Work units of the table build per update; 0: all at once.
     build_units: u16,
+    /// The caller advances the build ([`Tracker::advance_build`]).
+    build_deferred: bool,
     candidate_count: u16,
     candidate_sum_n: f32,
     /// The side of the active load the candidate's samples lie on.
@@ -186,6 +188,7 @@ impl Tracker {
             family,
             build: TableBuild::new(),
             build_units: 0,
+            build_deferred: false,
             candidate_count: 0,
             candidate_sum_n: 0.0,
             candidate_above: false,
@@ -201,6 +204,24 @@ impl Tracker {
     /// [`inverse_ready`](Self::inverse_ready) is false.
     pub fn set_build_budget(&mut self, units_per_update: u16) {
         self.build_units = units_per_update;
+        self.build_deferred = false;
+    }
+
+    /// Leave the table build to the caller: [`update`](Self::update) does
+    /// none of it, and [`advance_build`](Self::advance_build) does a given
+    /// number of units (a controller that knows what else its period spent).
+    pub fn defer_build(&mut self) {
+        self.build_deferred = true;
+    }
+
+    /// Advance the active model's table build by at most `units` work units
+    /// (see [`set_build_budget`](Self::set_build_budget)); `true` once the
+    /// tables are complete ([`inverse_ready`](Self::inverse_ready)).
+    pub fn advance_build(&mut self, units: u16) -> bool {
+        if self.model.inverse_ready() {
+            return true;
+        }
+        self.model.advance_build(&mut self.build, units)
     }
 
     /// The branch the muscle is on.
@@ -249,8 +270,8 @@ impl Tracker {
             out.non_finite_input = true;
             out.load_out_of_range = true;
         }
-        if !self.model.inverse_ready() {
-            self.advance_build();
+        if !self.build_deferred && !self.model.inverse_ready() {
+            self.advance_own_build();
         }
         out
     }
@@ -309,6 +330,7 @@ impl Tracker {
 
     /// The rare path of [`update_load`](Self::update_load): the model at the
     /// debounced mean load, its coefficients now (fixed work), its tables in
+    /// [`advance_own_build`](Self::advance_own_build) or the caller's
     /// [`advance_build`](Self::advance_build). Out of line so that the
     /// per-sample path does not carry its stack frame.
     #[cold]
@@ -325,7 +347,7 @@ impl Tracker {
     /// Advance the active model's table build by the budget (all of it
     /// without a budget: at most [`BUILD_UNITS_MAX`](crate::load_model::BUILD_UNITS_MAX) units).
     #[inline(never)]
-    fn advance_build(&mut self) {
+    fn advance_own_build(&mut self) {
         let units = if self.build_units == 0 {
             u16::MAX
         } else {

@@ -168,10 +168,12 @@ pub enum Feedforward {
     /// (the jump the paper's conclusion says non-local memory removes).
     /// With no reversal remembered it is exactly [`Feedforward::Hysteresis`].
     ///
-    /// Work per step: [`MEMORY_INVERSE_STEPS`](super::MEMORY_INVERSE_STEPS)
-    /// evaluations of the memory's pressure → contraction curve (each up to
-    /// three table inverses and one `powf`) to invert it, since the memory
-    /// is defined in that direction.
+    /// Work per step: pam-core's
+    /// [`ReversalStack::inverse_pressure_mpa`](pam_core::effects::ReversalStack::inverse_pressure_mpa):
+    /// two branch inverses (the minor loop's ends),
+    /// [`MEMORY_INVERSE_STEPS`](super::MEMORY_INVERSE_STEPS) bisection steps
+    /// of the loop's blend in branch contraction (one division each) and one
+    /// forward evaluation.
     HysteresisMemory(NonLocalMemory),
 }
 

@@ -72,6 +72,13 @@ impl Law {
         self.memory.clear();
     }
 
+    /// The memory feedforward computed a minor loop's ends on this period
+    /// (two branch inverses, table-free and slower while the tracker builds
+    /// a new load's tables) instead of using its cached loop.
+    pub fn rebuilt_loop(&self) -> bool {
+        self.memory.rebuilt_loop
+    }
+
     /// One period on checked (finite, in range) readings. `ki_dt` is
     /// `ki_mpa_per_s · dt_s`.
     #[allow(clippy::too_many_arguments)]
@@ -143,12 +150,21 @@ impl Law {
 struct MemoryState {
     stack: ReversalStack<MEMORY_DEPTH>,
     extreme: Option<Reversal>,
+    /// The memory with `extreme` pushed, kept while the set-point backs off
+    /// from it (so its minor loop stays cached); valid while `trial_valid`.
+    trial: ReversalStack<MEMORY_DEPTH>,
+    trial_valid: bool,
+    /// The last feedforward computed a minor loop's ends (two branch
+    /// inverses) instead of using the cached loop.
+    rebuilt_loop: bool,
 }
 
 impl MemoryState {
     fn clear(&mut self) {
         self.stack.clear();
         self.extreme = None;
+        self.trial_valid = false;
+        self.rebuilt_loop = false;
     }
 
     /// The feedforward pressure that holds `x_ref` on the memory's curve for
@@ -173,6 +189,7 @@ impl MemoryState {
         branch: Branch,
         branch_switch: bool,
     ) -> f32 {
+        self.rebuilt_loop = false;
         if branch_switch {
             if let Some(r) = self.extreme.take() {
                 self.stack.push(r);
@@ -184,11 +201,25 @@ impl MemoryState {
                 Branch::Expansion => x_ref > e.contraction,
             };
             if backing_off {
-                let mut trial = self.stack;
-                trial.push(e);
-                return trial.inverse_pressure_mpa(params, model, x_ref, branch.opposite(), 1.0);
+                if !self.trial_valid {
+                    self.trial = self.stack;
+                    self.trial.push(e);
+                    self.trial_valid = true;
+                }
+                self.rebuilt_loop = !self.trial.has_cached_loop();
+                return self.trial.inverse_pressure_mpa(
+                    params,
+                    model,
+                    x_ref,
+                    branch.opposite(),
+                    1.0,
+                );
             }
         }
+        // The memory moves on (wipe-out, new extreme): the trial is stale.
+        self.trial_valid = false;
+        let before = self.stack.points().len();
+        let cached = self.stack.has_cached_loop();
         let p_mpa = if self.stack.points().is_empty() {
             // No reversal remembered: `x(p)` is the branch inverse, whose
             // inverse is the forward model, eqs. (25)/(26).
@@ -198,6 +229,9 @@ impl MemoryState {
                 .inverse_pressure_mpa(params, model, x_ref, branch, 1.0)
         };
         self.stack.wipe_out(p_mpa, branch);
+        // A loop's ends were computed unless the cached loop served (a
+        // closed loop, popped here, was evaluated afresh).
+        self.rebuilt_loop = before > 0 && (!cached || self.stack.points().len() < before);
         // At or beyond the sweep's extreme: the turning point of the next reversal.
         self.extreme = Some(Reversal {
             pressure_mpa: p_mpa,

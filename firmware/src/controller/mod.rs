@@ -69,7 +69,9 @@ use monitor::Monitor;
 use pam_core::{Branch, Coeffs, Tracker, Update};
 
 /// Work units of a load switch's inverse-table build per step (one forward
-/// evaluation or one Newton step each, see [`Tracker::set_build_budget`]).
+/// evaluation or one Newton step each, see [`Tracker::set_build_budget`]),
+/// done at the end of the step; none on a step whose memory feedforward
+/// computed a minor loop's ends.
 /// Chosen with bench-m4 so that the step's worst case stays under 2 000
 /// instructions; a complete build then takes at most
 /// `pam_core::load_model::BUILD_UNITS_MAX / 12` = 147 periods. The new
@@ -139,7 +141,7 @@ impl Controller {
                 .map_err(ConfigError::Tracker)?;
         // A load switch's table build, spread over the periods that follow
         // it: the step's worst case stays bounded (bench-m4 `load_switch`).
-        tracker.set_build_budget(TABLE_BUILD_UNITS_PER_STEP);
+        tracker.defer_build();
         Ok(Controller {
             monitor: Monitor::new(&config.safety, &coeffs, config.dt_s),
             ki_dt: config.ki_mpa_per_s * config.dt_s,
@@ -263,6 +265,24 @@ impl Controller {
     /// built in place.
     #[inline(always)]
     fn update_inline(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
+        let step = self.compute(sample, desired_contraction);
+        if !self.tracker.inverse_ready() {
+            // The new load's tables, after everything else of the period: a
+            // period whose memory feedforward computed a minor loop's ends
+            // (two table-free inverses) leaves the build to the next one.
+            let units = if self.law.rebuilt_loop() {
+                0
+            } else {
+                TABLE_BUILD_UNITS_PER_STEP
+            };
+            self.tracker.advance_build(units);
+        }
+        step
+    }
+
+    /// Everything of a period but the table build.
+    #[inline(always)]
+    fn compute(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
         self.period = self.period.wrapping_add(1);
         let mut step = Step {
             fault: None,

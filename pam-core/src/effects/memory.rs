@@ -262,6 +262,13 @@ impl<const N: usize> ReversalStack<N> {
         self.segment = None;
     }
 
+    /// Whether the top minor loop is cached (then [`Self::contraction`] and
+    /// [`Self::inverse_pressure_mpa`] on it skip the two branch inverses of
+    /// its ends, as long as branch, model and offset scale stay the same).
+    pub fn has_cached_loop(&self) -> bool {
+        self.segment.is_some()
+    }
+
     /// Forget the cached minor loop (the [`Simulator`](crate::Simulator)
     /// calls this where the branch changes; its model and offset scale change
     /// only with a load switch, which clears the stack, or are compared).
@@ -349,14 +356,17 @@ impl<const N: usize> ReversalStack<N> {
 
     /// The inverse of [`Self::contraction`]: the pressure in `[0, Pmax]` at
     /// which the memory's curve for `branch` reaches `contraction` (the
-    /// feedforward of a controller that follows the memory). The stack is
-    /// not changed; apply [`Self::wipe_out`] with the result to move on.
+    /// feedforward of a controller that follows the memory). The points are
+    /// not changed (only the cached minor loop); apply [`Self::wipe_out`]
+    /// with the result to move on.
     ///
     /// Minor loops that `contraction` lies beyond (past the contraction of
     /// the point below the top, in the direction of `branch`) close first,
     /// as [`Self::wipe_out`] closes them for a pressure past that point's.
     /// On the remaining loop the curve is `x = B + d_t + (d_r − d_t)·w(s(B))`
-    /// in the branch contraction `B`, which is solved for `B` by
+    /// in the branch contraction `B`, which is solved for `B` in closed form
+    /// (one square root; see `Segment::solve`), or where that finds no
+    /// candidate (a contraction beyond the curve's reach) by
     /// [`MEMORY_INVERSE_STEPS`] bisection steps (no table inverse in them:
     /// a few `f32` operations and one division each); the pressure is then
     /// the forward model at `B`, eqs. (25)/(26). With no reversal left it is
@@ -365,10 +375,12 @@ impl<const N: usize> ReversalStack<N> {
     /// falls with it on the expansion branch. Never NaN (NaN `contraction`
     /// maps to `R_i`).
     ///
-    /// Fixed work: at most `N/2 + 1` comparisons, two branch inverses (the
-    /// loop's ends), the bisection and one forward evaluation.
+    /// Bounded work: at most `N/2 + 1` comparisons, two branch inverses (the
+    /// loop's ends; cached for the top loop, see [`Self::has_cached_loop`]),
+    /// the closed form (and at most the bisection) and one forward
+    /// evaluation.
     pub fn inverse_pressure_mpa(
-        &self,
+        &mut self,
         params: &NonLocalMemory,
         model: &LoadModel,
         contraction: f32,
@@ -395,11 +407,23 @@ impl<const N: usize> ReversalStack<N> {
         let Some(&origin) = origin else {
             return branch_pressure_mpa(model, x_ref, branch, offset_scale);
         };
-        let target = len.checked_sub(2).and_then(|i| self.points.get(i)).copied();
         let blend = params.blend_coeffs();
-        let seg = Segment::new(blend, model, origin, target, branch, offset_scale);
-        // x(B) is non-decreasing in B: bisection for the largest B with
-        // x(B) <= x_ref.
+        let seg = if len == self.len {
+            // The top loop: cached between calls, as for `contraction`.
+            match self.segment(blend, model, branch, offset_scale) {
+                Some(seg) => seg,
+                None => return branch_pressure_mpa(model, x_ref, branch, offset_scale),
+            }
+        } else {
+            let target = len.checked_sub(2).and_then(|i| self.points.get(i)).copied();
+            Segment::new(blend, model, origin, target, branch, offset_scale)
+        };
+        if let Some(b) = seg.solve(blend, x_ref) {
+            return branch_pressure_mpa(model, clamp(b, lo_x, hi_x), branch, offset_scale);
+        }
+        // No closed-form candidate (x_ref beyond the curve's reach, or
+        // rounding at a region boundary): x(B) is non-decreasing in B, so
+        // bisect for the largest B with x(B) <= x_ref.
         let (mut lo, mut hi) = (lo_x, hi_x);
         for _ in 0..MEMORY_INVERSE_STEPS {
             let mid = 0.5 * (lo + hi);
@@ -535,6 +559,61 @@ impl Segment {
         let w = blend.apply(1.0 + (x_branch - self.b_r) * self.inv_progress);
         let x = x_branch + self.d_t + self.d_rt * w;
         clamp(x, model.root_contraction(), model.max_contraction())
+    }
+
+    /// The branch contraction `B` at which the loop's curve (unclamped) is
+    /// at `x_ref`, in closed form, or `None` when no candidate checks out.
+    ///
+    /// With `s = 1 + (B − B_r)·i` (`i` = `inv_progress`) the curve is
+    /// `B + d_t + d_rt·w(s)`. Where `s ≥ 1` (`w = 1`) it is
+    /// `B = x_ref − d_t − d_rt`; where `s ≤ 0` (`w = 0`), `B = x_ref − d_t`;
+    /// in between, `B = B_r + (s − 1)/i` and
+    /// `(s − 1)(k + (1 − k)s) + i·d_rt·s − i·c·(k + (1 − k)s) = 0`,
+    /// `c = x_ref − d_t − B_r`: a quadratic in `s`. Each candidate is
+    /// checked against its region and the curve.
+    fn solve(&self, blend: Blend, x_ref: f32) -> Option<f32> {
+        let big_x = x_ref - self.d_t;
+        let i = self.inv_progress;
+        let s_of = |b: f32| 1.0 + (b - self.b_r) * i;
+        let fits = |b: f32| {
+            let w = blend.apply(s_of(b));
+            let x = b + self.d_t + self.d_rt * w;
+            (x - x_ref).abs() <= 1e-6 + 1e-5 * x_ref.abs()
+        };
+        // w = 1 (at or behind the turning point, or a degenerate loop).
+        let b1 = big_x - self.d_rt;
+        if !(s_of(b1) < 1.0) && fits(b1) {
+            return Some(b1);
+        }
+        // w = 0 (merged: parallel to the branch at the target's offset).
+        if !(s_of(big_x) > 0.0) && fits(big_x) {
+            return Some(big_x);
+        }
+        if i == 0.0 {
+            return None;
+        }
+        let (k, m) = (blend.k, blend.one_minus_k);
+        let c = big_x - self.b_r;
+        let qa = m;
+        let qb = k - m + i * self.d_rt - i * c * m;
+        let qc = -k * (1.0 + i * c);
+        let mut roots = [f32::NAN; 2];
+        if qa.abs() < 1e-6 {
+            roots[0] = -qc / qb;
+        } else {
+            let disc = qb * qb - 4.0 * qa * qc;
+            if !(disc >= 0.0) {
+                return None;
+            }
+            let root = crate::math::sqrt(disc);
+            let q = -0.5 * (qb + if qb >= 0.0 { root } else { -root });
+            roots = [q / qa, qc / q];
+        }
+        roots
+            .into_iter()
+            .filter(|s| (-1e-6..=1.0 + 1e-6).contains(s))
+            .map(|s| self.b_r + (s - 1.0) / i)
+            .find(|&b| fits(b))
     }
 }
 
