@@ -253,6 +253,7 @@ impl Tracker {
     }
 
     /// Feed one sample of the drive signal and the load.
+    #[inline]
     pub fn update(&mut self, coeffs: &Coeffs, drive: f32, load_n: f32) -> Update {
         let mut out = Update::default();
         if drive.is_finite() {

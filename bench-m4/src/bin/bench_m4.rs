@@ -161,7 +161,7 @@ fn bench_memory_wipe_out(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) -
 #[no_mangle]
 #[inline(never)]
 fn bench_memory_inverse(
-    s: &ReversalStack<8>,
+    s: &mut ReversalStack<8>,
     mem: &NonLocalMemory,
     m: &LoadModel,
     x: f32,
@@ -388,14 +388,16 @@ fn main() -> ! {
     let mut warm_mem = new_sim(memory);
     let t0 = warm(&mut warm_mem);
     let past: [f32; 8] = core::array::from_fn(|i| 0.301 + 0.004 * i as f32);
-    group("memory_wipe_out", &past, |p| {
+    hprintln!("group memory_wipe_out {}", past.len());
+    for &p in &past {
         let mut s = warm_mem.clone();
-        let x = bench_memory_wipe_out(&mut s, t0 + 0.02, p, 200.0);
+        black_box(measure(|| {
+            bench_memory_wipe_out(&mut s, black_box(t0 + 0.02), black_box(p), black_box(200.0))
+        }));
         if !s.reversals().is_empty() {
             fail("no wipe-out");
         }
-        x
-    });
+    }
     // The memory's inverse (the memory feedforward's per-step work) on
     // that minor loop.
     let mut stack = ReversalStack::<8>::default();
@@ -404,8 +406,17 @@ fn main() -> ! {
     }
     let mem_params = NonLocalMemory::with_shape(MEMORY_SHAPE);
     let xs: [f32; 16] = core::array::from_fn(|i| 0.03 + 0.012 * i as f32);
+    // First call on a loop (its ends: two branch inverses), then cached.
+    hprintln!("group memory_inverse_new_loop {}", xs.len());
+    for &x in &xs {
+        let mut st = stack;
+        black_box(measure(|| {
+            bench_memory_inverse(&mut st, &mem_params, &model, black_box(x), black_box(Branch::Contraction))
+        }));
+    }
+    bench_memory_inverse(&mut stack, &mem_params, &model, 0.1, Branch::Contraction);
     group("memory_inverse", &xs, |x| {
-        bench_memory_inverse(&stack, &mem_params, &model, x, black_box(Branch::Contraction))
+        bench_memory_inverse(&mut stack, &mem_params, &model, x, black_box(Branch::Contraction))
     });
 
     // A load switch of the tracker with the firmware's build budget: every

@@ -74,11 +74,11 @@ use pam_core::{Branch, Coeffs, Tracker, Update};
 /// computed a minor loop's ends.
 /// Chosen with bench-m4 so that the step's worst case stays under 2 000
 /// instructions; a complete build then takes at most
-/// `pam_core::load_model::BUILD_UNITS_MAX / 12` = 147 periods. The new
+/// `pam_core::load_model::BUILD_UNITS_MAX / 10` = 176 periods. The new
 /// load's forward model (the feedforward) is active from the switch; while
 /// its tables are built the model check is paused and the memory
 /// feedforward's branch inverse is pam-core's slower table-free one.
-pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 12;
+pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 10;
 
 /// What one step did; the firmware logs `new_fault` and `recovered`.
 #[derive(Clone, Copy, Debug, PartialEq)]
