@@ -24,11 +24,13 @@
 //! within [`INVERSE_TOLERANCE_MPA`].
 //!
 //! # Cost
-//! Building a model solves the inverse precisely at [`INVERSE_INTERVALS`]`
-//! + 1` pressures per branch (at most [`BUILD_UNITS_MAX`] work units of a
-//! few dozen `f32` operations each). At start-up that happens at once; on a
-//! load switch [`crate::Tracker`] spreads it over several control periods
-//! while the previous model stays active. Per sample, the inverse is one
+//! Building a model solves the inverse precisely at
+//! [`INVERSE_INTERVALS`]` + 1` pressures per branch (at most
+//! [`BUILD_UNITS_MAX`] work units of a few dozen `f32` operations each). At
+//! start-up that happens at once; after a load switch [`crate::Tracker`] can
+//! spread it over several control periods, during which the new model
+//! evaluates forward at full speed and its inverse falls back to a slower
+//! table-free solve ([`LoadModel::inverse_ready`]). Per sample, the inverse is one
 //! table look-up indexed directly by pressure (no search), a linear
 //! interpolation and one Newton step kept inside the table interval: fixed
 //! work, two divisions and one square root.
