@@ -61,7 +61,8 @@ const BUILD_CONVERGED: f32 = 1e-7;
 /// Work units a complete [`TableBuild`] can take at most: per branch one per
 /// hull knot, and per table entry one for the bracket and up to
 /// [`BUILD_ITERATIONS`] Newton steps.
-pub const BUILD_UNITS_MAX: usize = 2 * (BUILD_KNOTS + (INVERSE_INTERVALS + 1) * (1 + BUILD_ITERATIONS));
+pub const BUILD_UNITS_MAX: usize =
+    2 * (BUILD_KNOTS + (INVERSE_INTERVALS + 1) * (1 + BUILD_ITERATIONS));
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stage {
@@ -332,7 +333,11 @@ impl LoadModel {
                 let last = b.k >= INVERSE_INTERVALS;
                 let top = b.running;
                 let (p, j) = if last {
-                    let j = b.hull.iter().position(|&h| h >= top).unwrap_or(BUILD_KNOTS - 1);
+                    let j = b
+                        .hull
+                        .iter()
+                        .position(|&h| h >= top)
+                        .unwrap_or(BUILD_KNOTS - 1);
                     (top, j)
                 } else {
                     let p = self.max_pressure_mpa * b.k as f32 / INVERSE_INTERVALS as f32;

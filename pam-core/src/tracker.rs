@@ -35,7 +35,6 @@ use crate::coeffs::Coeffs;
 use crate::error::Error;
 use crate::load_model::{FamilyF32, LoadModel, TableBuild};
 
-
 /// Tuning of the tracker.
 ///
 /// `direction_deadband` is in the drive signal's unit: build the
@@ -61,8 +60,7 @@ pub struct TrackerConfig {
 impl TrackerConfig {
     /// For a pressure drive signal in MPa with noise up to ±0.002 MPa and a
     /// load cell with noise up to ±5 N, sampled at 100–1000 Hz.
-    pub const DEFAULT_PRESSURE: TrackerConfig =
-        TrackerConfig::for_pressure_drive(0.005, 20.0, 5);
+    pub const DEFAULT_PRESSURE: TrackerConfig = TrackerConfig::for_pressure_drive(0.005, 20.0, 5);
 
     /// For a contraction drive signal (the firmware controller's noise-free
     /// set-point), 1 kHz: a deadband of 0.002 of rest length.
@@ -525,7 +523,10 @@ mod tests {
                 // The inverse meanwhile: slow, but the same to the tolerance.
                 for p in [0.0, 0.1, 0.3, 0.45] {
                     for br in [Branch::Contraction, Branch::Expansion] {
-                        let (a, b) = (t.model().contraction(p, br), instant.model().contraction(p, br));
+                        let (a, b) = (
+                            t.model().contraction(p, br),
+                            instant.model().contraction(p, br),
+                        );
                         assert!((a - b).abs() < 1e-3, "{p} {br:?}: {a} vs {b}");
                     }
                 }

@@ -64,7 +64,9 @@ fn group<T: Copy, R>(name: &str, inputs: &[T], mut f: impl FnMut(T) -> R) {
 fn fail(why: &str) -> ! {
     hprintln!("{}", why);
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 // ---- the measured functions: one symbol each ----
@@ -231,7 +233,7 @@ fn run_load(k: usize) -> f32 {
         }
     }
     // ±0.2 N of load-cell noise (a frozen reading would be a stuck sensor).
-    load + if k % 2 == 0 { 0.2 } else { -0.2 }
+    load + if k.is_multiple_of(2) { 0.2 } else { -0.2 }
 }
 
 /// One pass of the representative run on a fresh copy of `base`: a plant
@@ -256,7 +258,9 @@ fn run_controller(
         bus.contraction.set(x);
         bus.load_n.set(run_load(k));
         let measured = match select {
-            Some((sel, mask)) => sel.get(k).is_some_and(|&s| s & mask != 0 || mask == u8::MAX),
+            Some((sel, mask)) => sel
+                .get(k)
+                .is_some_and(|&s| s & mask != 0 || mask == u8::MAX),
             None => false,
         };
         let step = if measured {
@@ -357,13 +361,8 @@ fn main() -> ! {
     let minor: [(f32, f32); 16] =
         core::array::from_fn(|k| (0.02 * (k + 1) as f32, 0.162 + 0.008 * k as f32));
     let new_sim = |effects| {
-        Simulator::<16>::new(
-            coeffs.clone(),
-            effects,
-            TrackerConfig::DEFAULT_PRESSURE,
-            200.0,
-        )
-        .unwrap_or_else(|_| fail("simulator refused"))
+        Simulator::<16>::new(coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, 200.0)
+            .unwrap_or_else(|_| fail("simulator refused"))
     };
     let mut sim = new_sim(Effects::NONE);
     let t0 = warm(&mut sim);
@@ -411,12 +410,24 @@ fn main() -> ! {
     for &x in &xs {
         let mut st = stack;
         black_box(measure(|| {
-            bench_memory_inverse(&mut st, &mem_params, &model, black_box(x), black_box(Branch::Contraction))
+            bench_memory_inverse(
+                &mut st,
+                &mem_params,
+                &model,
+                black_box(x),
+                black_box(Branch::Contraction),
+            )
         }));
     }
     bench_memory_inverse(&mut stack, &mem_params, &model, 0.1, Branch::Contraction);
     group("memory_inverse", &xs, |x| {
-        bench_memory_inverse(&mut stack, &mem_params, &model, x, black_box(Branch::Contraction))
+        bench_memory_inverse(
+            &mut stack,
+            &mem_params,
+            &model,
+            x,
+            black_box(Branch::Contraction),
+        )
     });
 
     // A load switch of the tracker with the firmware's build budget: every
@@ -465,7 +476,7 @@ fn main() -> ! {
 
     // The firmware's controller with the in-memory simulated sensors and
     // PWM: set-point ramping up then down, sensors a little behind.
-    let Ok(mut ctl) = Controller::new(coeffs.clone(), ControllerConfig::DEFAULT, 200.0) else {
+    let Ok(mut ctl) = Controller::new(coeffs, ControllerConfig::DEFAULT, 200.0) else {
         fail("controller refused");
     };
     let bus = SimBus::new();
@@ -522,13 +533,17 @@ fn main() -> ! {
     for (name, ff) in feedforwards {
         let mut cfg = ControllerConfig::DEFAULT;
         cfg.feedforward = black_box(ff);
-        let Ok(base) = Controller::new(coeffs.clone(), cfg, 200.0) else {
+        let Ok(base) = Controller::new(coeffs, cfg, 200.0) else {
             fail("controller refused");
         };
         let mut classes = [0u8; RUN_LEN];
         run_controller(&base, &bus, &mut io, None, &mut classes);
         let sel = classes;
-        for (what, mask) in [("run", u8::MAX), ("reversal", REVERSAL), ("load_switch", LOAD_SWITCH)] {
+        for (what, mask) in [
+            ("run", u8::MAX),
+            ("reversal", REVERSAL),
+            ("load_switch", LOAD_SWITCH),
+        ] {
             let n = sel
                 .iter()
                 .filter(|&&c| mask == u8::MAX || c & mask != 0)
@@ -553,11 +568,15 @@ fn main() -> ! {
 
     hprintln!("done");
     debug::exit(debug::EXIT_SUCCESS);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }

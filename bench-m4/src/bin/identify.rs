@@ -210,7 +210,11 @@ fn identify_pi(samples: &[Sample], heldout: &[bool]) -> PiTable<N, L> {
     table
 }
 
-fn identify_gpi(samples: &[Sample], heldout: &[bool], max_threshold_mpa: f32) -> GpiTable<GPI_N, L> {
+fn identify_gpi(
+    samples: &[Sample],
+    heldout: &[bool],
+    max_threshold_mpa: f32,
+) -> GpiTable<GPI_N, L> {
     let thresholds_mpa: [f32; GPI_N] =
         core::array::from_fn(|i| (i + 1) as f32 * max_threshold_mpa / GPI_N as f32);
     let zero = GpiCoeffs {

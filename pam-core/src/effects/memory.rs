@@ -503,52 +503,52 @@ impl Segment {
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
-            let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
-            let (b_t, d_t) = match target {
-                Some(t) => {
-                    let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
-                    (b_t, t.contraction - b_t)
-                }
-                // The first reversal's curve closes on the end of the major loop.
-                None => {
-                    let end = match branch {
-                        Branch::Contraction => model.max_pressure_mpa(),
-                        Branch::Expansion => 0.0,
-                    };
-                    (branch_contraction(model, end, branch, offset_scale), 0.0)
-                }
-            };
-            let span = b_r - b_t;
-            let degenerate = !(span.abs() > 1e-6);
-            let inv_progress = if degenerate {
-                0.0
-            } else if span > 0.0 {
-                (1.0 / span).max(blend.inv_merge)
-            } else {
-                (1.0 / span).min(-blend.inv_merge)
-            };
-            let wipe_sign = match branch {
-                Branch::Contraction => 1.0,
-                Branch::Expansion => -1.0,
-            };
-            Segment {
-                branch,
-                scale_bits,
-                load_bits,
-                max_contraction_bits,
-                merge_bits,
-                wipe_sign,
-                wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
-                b_r,
-                inv_progress,
-                d_t,
-                // A degenerate loop sits at the target's offset (s is 1 there).
-                d_rt: if degenerate {
-                    0.0
-                } else {
-                    (origin.contraction - b_r) - d_t
-                },
+        let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
+        let (b_t, d_t) = match target {
+            Some(t) => {
+                let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
+                (b_t, t.contraction - b_t)
             }
+            // The first reversal's curve closes on the end of the major loop.
+            None => {
+                let end = match branch {
+                    Branch::Contraction => model.max_pressure_mpa(),
+                    Branch::Expansion => 0.0,
+                };
+                (branch_contraction(model, end, branch, offset_scale), 0.0)
+            }
+        };
+        let span = b_r - b_t;
+        let degenerate = !(span.abs() > 1e-6);
+        let inv_progress = if degenerate {
+            0.0
+        } else if span > 0.0 {
+            (1.0 / span).max(blend.inv_merge)
+        } else {
+            (1.0 / span).min(-blend.inv_merge)
+        };
+        let wipe_sign = match branch {
+            Branch::Contraction => 1.0,
+            Branch::Expansion => -1.0,
+        };
+        Segment {
+            branch,
+            scale_bits,
+            load_bits,
+            max_contraction_bits,
+            merge_bits,
+            wipe_sign,
+            wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
+            b_r,
+            inv_progress,
+            d_t,
+            // A degenerate loop sits at the target's offset (s is 1 there).
+            d_rt: if degenerate {
+                0.0
+            } else {
+                (origin.contraction - b_r) - d_t
+            },
+        }
     }
 
     /// `B(p) + d_t + (d_r − d_t)·w(s)` for `B(p) = x_branch`, within the
