@@ -49,9 +49,9 @@ const BUILD_KNOTS: usize = 33;
 /// Safeguarded Newton iterations per table entry while building.
 const BUILD_ITERATIONS: usize = 12;
 
-/// Newton steps of the inverse while the tables are being built
-/// ([`LoadModel::inverse_ready`]).
-pub const FALLBACK_NEWTON_STEPS: usize = 10;
+/// Bisection steps of the inverse while the tables are being built
+/// ([`LoadModel::inverse_ready`]): a stroke of 0.2 over 2¹² is 5·10⁻⁵.
+pub const FALLBACK_BISECTION_STEPS: usize = 12;
 
 /// A Newton step of the table build that moves contraction by less than
 /// this ends the entry (a few `f32` ulps of a contraction near 0.1; the
@@ -518,43 +518,34 @@ impl LoadModel {
     /// Whether the inverse tables are complete. A model whose tables a
     /// [`crate::Tracker`] is still building (after a load switch with a
     /// build budget) evaluates forward at full speed, but its
-    /// [`Self::contraction`] falls back to [`FALLBACK_NEWTON_STEPS`]
-    /// safeguarded Newton steps on the branch (about four times the table
+    /// [`Self::contraction`] falls back to [`FALLBACK_BISECTION_STEPS`]
+    /// bisection steps on the forward model (about six times the table
     /// inverse's cost).
     pub fn inverse_ready(&self) -> bool {
         self.tables_ready
     }
 
-    /// The inverse without tables: the contraction where the unclamped
-    /// branch crosses `pressure_mpa` (clamped to `[0, Pmax]`, NaN → 0) in
-    /// the stroke, by [`FALLBACK_NEWTON_STEPS`] bracketed Newton steps with
-    /// bisection fallback from a linear first guess. Where the branch
-    /// increases this is the table inverse's answer; at the clamped branch
-    /// ends it may differ by the dip the module docs describe.
+    /// The inverse without tables: the largest contraction of the stroke at
+    /// which the (clamped) branch pressure does not exceed `pressure_mpa`
+    /// (clamped to `[0, Pmax]`, NaN → 0), by [`FALLBACK_BISECTION_STEPS`]
+    /// bisection steps on the forward model. Where the branch increases this
+    /// is the table inverse's answer to the bisection's resolution.
     #[inline(never)]
     fn contraction_without_tables(&self, pressure_mpa: f32, branch: Branch) -> f32 {
         let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
         if p >= self.max_pressure_mpa {
             return self.max_contraction;
         }
-        let sign = branch.offset_sign();
         let (mut lo, mut hi) = (self.root, self.max_contraction);
-        let mut x = lo + (hi - lo) * p / self.max_pressure_mpa;
-        for _ in 0..FALLBACK_NEWTON_STEPS {
-            let (g, dg) = self.branch_and_slope(x, sign);
-            if g <= p {
-                lo = x;
+        for _ in 0..FALLBACK_BISECTION_STEPS {
+            let mid = 0.5 * (lo + hi);
+            if self.pressure_mpa(mid, branch) <= p {
+                lo = mid;
             } else {
-                hi = x;
+                hi = mid;
             }
-            let next = x + (p - g) / dg;
-            x = if next > lo && next < hi {
-                next
-            } else {
-                0.5 * (lo + hi)
-            };
         }
-        clamp(x, self.root, self.max_contraction)
+        0.5 * (lo + hi)
     }
 
     /// Inverse model: the contraction at which `branch` has `pressure_mpa`.
@@ -697,6 +688,27 @@ mod tests {
                     worst <= INVERSE_TOLERANCE_MPA,
                     "{load} N {br:?}: worst {worst}"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn the_inverse_without_tables_agrees_with_the_tables() {
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+        let family = FamilyF32::new(coeffs.family());
+        for load in [100.0, 250.0, 420.0, 600.0] {
+            let (full, bare) = (family.model(load), family.model_without_tables(load));
+            assert!(full.inverse_ready() && !bare.inverse_ready());
+            for i in 0..=1000 {
+                let p = 0.5 * i as f32 / 1000.0;
+                for br in [Branch::Contraction, Branch::Expansion] {
+                    let (a, b) = (full.contraction(p, br), bare.contraction(p, br));
+                    // The bisection's resolution: stroke / 2^12.
+                    assert!(
+                        (a - b).abs() < 1e-4,
+                        "{load} N, {p} MPa, {br:?}: {a} vs {b}"
+                    );
+                }
             }
         }
     }
