@@ -86,8 +86,27 @@ proptest! {
     }
 
     #[test]
-    fn arbitrary_blobs_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..100)) {
+    fn arbitrary_blobs_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..130)) {
         let _ = blob::decode(&bytes);
+        let _ = blob::decode_model(&bytes);
+        let _ = blob::framed_len(&bytes);
+    }
+
+    /// A version-2 frame around arbitrary payload bytes (so the CRC passes
+    /// and the flags and fields are what gets tested): never panics, and
+    /// what decodes re-encodes to the same bytes.
+    #[test]
+    fn framed_v2_payloads_decode_or_are_refused(payload in proptest::collection::vec(any::<u8>(), blob::PAYLOAD_V2_LEN)) {
+        let mut b = [0u8; blob::BLOB_V2_LEN];
+        b[0..4].copy_from_slice(&blob::BLOB_MAGIC);
+        b[4..6].copy_from_slice(&blob::BLOB_VERSION_V2.to_le_bytes());
+        b[6..8].copy_from_slice(&(blob::PAYLOAD_V2_LEN as u16).to_le_bytes());
+        b[8..8 + blob::PAYLOAD_V2_LEN].copy_from_slice(&payload);
+        let crc = blob::crc32(&b[..8 + blob::PAYLOAD_V2_LEN]);
+        b[8 + blob::PAYLOAD_V2_LEN..].copy_from_slice(&crc.to_le_bytes());
+        if let Ok((c, e)) = blob::decode_model(&b) {
+            prop_assert_eq!(&blob::encode_v2(c.params(), &e)[..], &b[..]);
+        }
     }
 
     #[test]
