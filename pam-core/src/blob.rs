@@ -408,11 +408,17 @@ mod tests {
                 width: all.width.filter(|_| mask & FLAG_WIDTH != 0),
             };
             let blob = encode_v2(&Params::DEFAULT, &e);
-            assert_eq!(u32::from_le_bytes([blob[64], blob[65], blob[66], blob[67]]), mask);
+            assert_eq!(
+                u32::from_le_bytes([blob[64], blob[65], blob[66], blob[67]]),
+                mask
+            );
             let (c, back) = decode_model(&blob).unwrap();
             assert_eq!(c.params(), &Params::DEFAULT);
             assert_eq!(back, e);
-            assert_eq!(framed_len(&[&blob[..], &[0xFF; 7]].concat()), Some(BLOB_V2_LEN));
+            assert_eq!(
+                framed_len(&[&blob[..], &[0xFF; 7]].concat()),
+                Some(BLOB_V2_LEN)
+            );
         }
     }
 

@@ -427,6 +427,10 @@ pub enum ConfigError {
     Invalid(Setting),
     /// A calibration or valve setting of the hardware layer is invalid.
     Hal(HalConfigError),
+    /// The coefficient blob's model has an effect this controller cannot run
+    /// (it runs the non-local memory; rate dependence, creep and a
+    /// load-dependent width are host-side effects for now).
+    UnsupportedEffect(&'static str),
 }
 
 impl From<HalConfigError> for ConfigError {
@@ -442,6 +446,9 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Tracker(e) => write!(f, "tracker configuration refused: {e}"),
             ConfigError::Invalid(s) => write!(f, "`{}` {}", s.name(), s.requirement()),
             ConfigError::Hal(e) => write!(f, "hardware configuration refused: {e}"),
+            ConfigError::UnsupportedEffect(e) => {
+                write!(f, "the model's {e} cannot run on this controller")
+            }
         }
     }
 }

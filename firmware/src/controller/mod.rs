@@ -80,6 +80,41 @@ use pam_core::{Branch, Coeffs, Tracker, Update};
 /// feedforward's branch inverse is pam-core's slower table-free one.
 pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 10;
 
+/// The coefficients of a blob (version 1 or 2, [`pam_core::blob`]) and the
+/// feedforward that runs its model, from the configured one:
+///
+/// * a model with non-local memory turns [`Feedforward::Hysteresis`] (and
+///   a hand-set [`Feedforward::HysteresisMemory`]) into
+///   `HysteresisMemory` with the blob's memory shape and merge span; the
+///   comparison modes [`Feedforward::Constraint`] and [`Feedforward::Off`]
+///   stay as configured;
+/// * a model with rate dependence, creep or a load-dependent width is
+///   refused ([`ConfigError::UnsupportedEffect`]): the controller would
+///   run a different model than the one identified.
+pub fn model_from_blob(
+    blob: &[u8],
+    feedforward: Feedforward,
+) -> Result<(Coeffs, Feedforward), ConfigError> {
+    let (coeffs, effects) =
+        pam_core::blob::decode_model(blob).map_err(ConfigError::Coefficients)?;
+    if effects.rate.is_some() {
+        return Err(ConfigError::UnsupportedEffect("rate dependence"));
+    }
+    if effects.creep.is_some() {
+        return Err(ConfigError::UnsupportedEffect("creep"));
+    }
+    if effects.width.is_some() {
+        return Err(ConfigError::UnsupportedEffect("load-dependent width"));
+    }
+    let feedforward = match (effects.memory, feedforward) {
+        (Some(m), Feedforward::Hysteresis | Feedforward::HysteresisMemory(_)) => {
+            Feedforward::HysteresisMemory(m)
+        }
+        (_, ff) => ff,
+    };
+    Ok((coeffs, feedforward))
+}
+
 /// What one step did; the firmware logs `new_fault` and `recovered`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -157,14 +192,23 @@ impl Controller {
 
     /// A controller from a coefficient blob in pam-core's format
     /// ([`pam_core::blob`]: magic, version, length, CRC-32, then the
-    /// parameters are validated). A blob that fails any check is refused.
+    /// parameters and effects are validated), with the feedforward the
+    /// blob's model asks for ([`model_from_blob`]). A blob that fails any
+    /// check, or whose model this controller cannot run, is refused.
     pub fn from_blob(
         blob: &[u8],
         config: ControllerConfig,
         initial_load_n: f32,
     ) -> Result<Controller, ConfigError> {
-        let coeffs = pam_core::blob::decode(blob).map_err(ConfigError::Coefficients)?;
-        Controller::new(coeffs, config, initial_load_n)
+        let (coeffs, feedforward) = model_from_blob(blob, config.feedforward)?;
+        Controller::new(
+            coeffs,
+            ControllerConfig {
+                feedforward,
+                ..config
+            },
+            initial_load_n,
+        )
     }
 
     /// The coefficients.
