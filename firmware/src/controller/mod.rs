@@ -95,8 +95,11 @@ pub fn model_from_blob(
     blob: &[u8],
     feedforward: Feedforward,
 ) -> Result<(Coeffs, Feedforward), ConfigError> {
-    let (coeffs, effects) =
-        pam_core::blob::decode_model(blob).map_err(ConfigError::Coefficients)?;
+    let (params, effects) =
+        pam_core::blob::decode_model_params(blob).map_err(ConfigError::Coefficients)?;
+    // The effects this controller cannot run are refused before anything is
+    // validated; the memory is validated here (what `decode_model` checks,
+    // without linking the other effects' validation into the image).
     if effects.rate.is_some() {
         return Err(ConfigError::UnsupportedEffect("rate dependence"));
     }
@@ -106,6 +109,10 @@ pub fn model_from_blob(
     if effects.width.is_some() {
         return Err(ConfigError::UnsupportedEffect("load-dependent width"));
     }
+    if let Some(m) = effects.memory {
+        m.validate().map_err(ConfigError::Coefficients)?;
+    }
+    let coeffs = Coeffs::new(params).map_err(ConfigError::Coefficients)?;
     let feedforward = match (effects.memory, feedforward) {
         (Some(m), Feedforward::Hysteresis | Feedforward::HysteresisMemory(_)) => {
             Feedforward::HysteresisMemory(m)
