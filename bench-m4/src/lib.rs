@@ -763,4 +763,39 @@ mod tests {
         assert!((t - 0.5).abs() < 1e-6);
         assert_eq!(grid_position(100.0, 100.0, 100.0, 1), (0, 0.0));
     }
+
+    #[test]
+    fn generalised_pi_is_the_cubic_plus_the_plays() {
+        let c = |bias: f32| GpiCoeffs {
+            bias,
+            cubic: [0.3, -0.2, 0.5],
+            weights: [0.1, -0.05],
+        };
+        let t = GpiTable::<2, 2> {
+            thresholds_mpa: [0.02, 0.08],
+            min_load_n: 100.0,
+            load_step_n: 100.0,
+            grid: [c(0.01), c(0.03)],
+        };
+        let mut m = GeneralizedPi::new(&t, 100.0, 0.0);
+        // Up to 0.3 MPa, then back to 0.2: the plays lag by their thresholds.
+        let mut x = 0.0;
+        for k in 0..=30 {
+            x = m.step(&t, 0.01 * k as f32, 100.0);
+        }
+        let cubic = |p: f32| 0.01 + p * (0.3 + p * (-0.2 + p * 0.5));
+        let up = cubic(0.3) + 0.1 * (0.3 - 0.02) - 0.05 * (0.3 - 0.08);
+        assert!((x - up).abs() < 1e-6, "{x} vs {up}");
+        for k in 1..=10 {
+            x = m.step(&t, 0.3 - 0.01 * k as f32, 100.0);
+        }
+        // The narrow play follows (0.2 + 0.02), the wide one holds at 0.22.
+        let down = cubic(0.2) + 0.1 * (0.2 + 0.02) - 0.05 * 0.22;
+        assert!((x - down).abs() < 1e-6, "{x} vs {down}");
+        // A load step interpolates the bias (150 N: halfway).
+        let y = m.step(&t, 0.2, 150.0);
+        assert!((y - (down + 0.01)).abs() < 1e-6, "{y}");
+        // A non-finite pressure holds the state.
+        assert_eq!(m.step(&t, f32::NAN, 150.0), y);
+    }
 }
