@@ -320,6 +320,22 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
 /// Decode and validate a blob of either version: the coefficients and the
 /// effects (none for version 1). Any defect is an [`Error::Blob`], the
 /// validation error of [`Coeffs::new`] or of [`Effects::validate`].
+///
+/// ```
+/// use pam_core::blob::{decode_model, encode, encode_v2};
+/// use pam_core::effects::NonLocalMemory;
+/// use pam_core::{Effects, Params};
+///
+/// let with_memory = Effects {
+///     memory: Some(NonLocalMemory { shape: 1.0, merge_span: 0.1 }),
+///     ..Effects::NONE
+/// };
+/// let (c, e) = decode_model(&encode_v2(&Params::DEFAULT, &with_memory)).unwrap();
+/// assert_eq!((c.params(), e), (&Params::DEFAULT, with_memory));
+/// // Version 1 is still read: the paper's model, no effects.
+/// let (_, e) = decode_model(&encode(&Params::DEFAULT)).unwrap();
+/// assert_eq!(e, Effects::NONE);
+/// ```
 pub fn decode_model(bytes: &[u8]) -> Result<(Coeffs, Effects), Error> {
     let (params, effects) = decode_model_params(bytes)?;
     let coeffs = Coeffs::new(params)?;

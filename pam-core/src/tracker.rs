@@ -200,6 +200,29 @@ impl Tracker {
     /// builds at once. The build then spans up to
     /// `BUILD_UNITS_MAX / units_per_update` updates, during which
     /// [`inverse_ready`](Self::inverse_ready) is false.
+    ///
+    /// ```
+    /// use pam_core::{Branch, Coeffs, Params, Tracker, TrackerConfig};
+    ///
+    /// let c = Coeffs::new(Params::DEFAULT).unwrap();
+    /// let cfg = TrackerConfig::DEFAULT_PRESSURE;
+    /// let mut t = Tracker::new(&c, cfg, 100.0, Branch::Contraction).unwrap();
+    /// t.set_build_budget(10);
+    /// // A load step: after the debounce the new load's model is active...
+    /// let switched = (0..cfg.load_debounce_samples)
+    ///     .filter_map(|_| t.update(&c, 0.2, 400.0).load_switch)
+    ///     .last();
+    /// assert_eq!(switched.map(|s| s.to_n), Some(400.0));
+    /// assert_eq!(t.load_n(), 400.0);
+    /// // ...and its inverse tables follow over the next updates.
+    /// assert!(!t.inverse_ready());
+    /// let mut updates = 0;
+    /// while !t.inverse_ready() {
+    ///     t.update(&c, 0.2, 400.0);
+    ///     updates += 1;
+    /// }
+    /// assert!(updates > 1 && updates <= pam_core::load_model::BUILD_UNITS_MAX / 10 + 1);
+    /// ```
     pub fn set_build_budget(&mut self, units_per_update: u16) {
         self.build_units = units_per_update;
         self.build_deferred = false;

@@ -379,6 +379,25 @@ impl<const N: usize> ReversalStack<N> {
     /// loop's ends; cached for the top loop, see [`Self::has_cached_loop`]),
     /// the closed form (and at most the bisection) and one forward
     /// evaluation.
+    ///
+    /// ```
+    /// use pam_core::effects::{NonLocalMemory, Reversal, ReversalStack};
+    /// use pam_core::{Branch, Coeffs, Params};
+    ///
+    /// let m = Coeffs::new(Params::DEFAULT).unwrap().load_model(200.0).unwrap();
+    /// let mem = NonLocalMemory::with_shape(1.0);
+    /// let mut stack = ReversalStack::<8>::default();
+    /// // Up to 0.3 MPa, reversed there: the curve back down is a minor loop.
+    /// let x_top = m.contraction(0.3, Branch::Contraction);
+    /// stack.push(Reversal { pressure_mpa: 0.3, contraction: x_top });
+    /// let x_ref = x_top - 0.02;
+    /// let p = stack.inverse_pressure_mpa(&mem, &m, x_ref, Branch::Expansion, 1.0);
+    /// let mut trial = stack;
+    /// let x = trial.contraction(&mem, &m, p, Branch::Expansion, 1.0);
+    /// assert!((x - x_ref).abs() < 1e-4);
+    /// // Between the branches: above the expansion branch's pressure there.
+    /// assert!(p > m.pressure_mpa(x_ref, Branch::Expansion));
+    /// ```
     pub fn inverse_pressure_mpa(
         &mut self,
         params: &NonLocalMemory,
