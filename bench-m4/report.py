@@ -106,7 +106,9 @@ if disasm_path:
 
 
 def reachable(name):
-    root = "bench_" + name
+    # The controller-run groups share one measured function.
+    root = "bench_controller_run" if name.startswith("ctl_") else "bench_" + name
+    root = {"bench_memory_inverse_new_loop": "bench_memory_inverse"}.get(root, root)
     if root not in sizes or not graph:
         return None
     root = name_at.get(addr_of.get(root), root)  # an alias of an identical function
