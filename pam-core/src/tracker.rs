@@ -566,6 +566,32 @@ mod tests {
     }
 
     #[test]
+    fn a_deferred_build_advances_only_when_the_caller_says() {
+        let (coeffs, mut t) = setup();
+        t.defer_build();
+        for _ in 0..TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples {
+            t.update(&coeffs, 0.1, 500.0);
+        }
+        assert_eq!(t.load_n(), 500.0);
+        for _ in 0..3000 {
+            t.update(&coeffs, 0.1, 500.0);
+            assert!(!t.advance_build(0));
+        }
+        assert!(!t.inverse_ready(), "update builds nothing when deferred");
+        let mut calls = 0;
+        while !t.advance_build(10) {
+            calls += 1;
+            assert!(calls <= crate::load_model::BUILD_UNITS_MAX / 10);
+        }
+        assert!(t.inverse_ready());
+        let (_, mut instant) = setup();
+        for _ in 0..5 {
+            instant.update(&coeffs, 0.1, 500.0);
+        }
+        assert_eq!(t.model(), instant.model());
+    }
+
+    #[test]
     fn the_f32_family_agrees_with_the_f64_construction() {
         let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
         let family = FamilyF32::new(coeffs.family());
