@@ -15,17 +15,41 @@ fn main() -> Result<(), Box<dyn Error>> {
     let mut blob = match env::var_os("PAM_COEFFS_BLOB") {
         Some(path) => {
             let bytes = fs::read(&path)?;
-            pam_core::blob::decode(&bytes)
+            pam_core::blob::decode_model(&bytes)
                 .map_err(|e| format!("PAM_COEFFS_BLOB {}: {e}", path.to_string_lossy()))?;
             println!("cargo:rerun-if-changed={}", path.to_string_lossy());
             bytes
         }
+        None if env::var_os("CARGO_FEATURE_QEMU_MEMORY_BLOB").is_some() => {
+            // A version-2 blob with non-local memory, as `pam-lab diagnose`
+            // writes for a record with memory (shape and merge span of the
+            // self-test: see firmware::scenario::MEMORY_BLOB_EFFECTS).
+            let effects = pam_core::Effects {
+                memory: Some(pam_core::effects::NonLocalMemory {
+                    shape: 1.0,
+                    merge_span: 0.02,
+                }),
+                ..pam_core::Effects::NONE
+            };
+            pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects).to_vec()
+        }
         None => pam_core::blob::encode(&pam_core::Params::DEFAULT).to_vec(),
     };
+    println!("cargo:rerun-if-env-changed=CARGO_FEATURE_QEMU_MEMORY_BLOB");
     if env::var_os("CARGO_FEATURE_QEMU_BAD_BLOB").is_some() {
         // One bit of one parameter flipped: the CRC check must refuse it at boot.
         blob[20] ^= 0x01;
     }
+    if blob.len() > pam_core::blob::MAX_BLOB_LEN {
+        return Err(format!(
+            "coefficient blob of {} bytes is longer than any version",
+            blob.len()
+        )
+        .into());
+    }
+    // The flash region holds the longest blob of any version; a shorter one
+    // is followed by erased flash (0xFF), its header giving its length.
+    blob.resize(pam_core::blob::MAX_BLOB_LEN, 0xFF);
     fs::write(out.join("coeffs.bin"), &blob)?;
 
     let bare_metal = env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "none");

@@ -58,6 +58,14 @@ bash firmware/panic-check.sh "$release/selftest" pam_control_step
 echo "== firmware: QEMU run-pass (netduinoplus2)"
 timeout 300 cargo fw-qemu
 
+echo "== firmware: QEMU run-pass with a version-2 blob carrying non-local memory"
+out=$(timeout 300 cargo fw-qemu-memory-blob 2>&1)
+echo "$out" | grep -E "blob accepted|max \|error\||PASS|FAIL" || true
+if ! grep -q "version 2, non-local memory" <<<"$out" || ! grep -q "PASS" <<<"$out"; then
+  echo "firmware: the v2 blob with memory did not boot and pass" >&2
+  exit 1
+fi
+
 echo "== firmware: QEMU, corrupt coefficient blob must be refused at boot"
 set +e
 out=$(timeout 300 cargo fw-qemu-bad-blob 2>&1)

@@ -3,7 +3,7 @@
 //! `host_sim::characterisation_run(1)`, training cycles only. Do not edit.
 #![allow(clippy::all, clippy::pedantic)]
 
-use crate::{PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};
+use crate::{GpiCoeffs, GpiTable, PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};
 use pam_core::{CriticalPoints, Params, Point};
 
 /// pam-core's parameters: pam_lab::fit::fit on the training cycles.
@@ -62,6 +62,45 @@ pub const PI16: PiTable<16, 6> = PiTable {
             bias: 0.54026675,
             linear: -0.32406226,
             weights: [0.5325025, 0.012992445, 0.16013075, 0.19692542, -0.5250362, 0.6297914, -0.24526607, -0.467271, -0.046974592, 0.5888961, -0.1961471, -0.27089557, 0.7272618, -0.60243046, 0.09501531, -2.2131698],
+        },
+    ],
+};
+
+/// Generalised Prandtl–Ishlinskii, 4 play operators and a cubic input nonlinearity, at 6 loads.
+pub const GPI4: GpiTable<4, 6> = GpiTable {
+    thresholds_mpa: [0.04, 0.08, 0.12, 0.16],
+    min_load_n: 100.0,
+    load_step_n: 100.0,
+    grid: [
+        GpiCoeffs {
+            bias: 0.008622049,
+            cubic: [-0.14639518, 2.1281505, -3.007181],
+            weights: [0.18318105, 0.05119519, 0.21704526, -0.17035182],
+        },
+        GpiCoeffs {
+            bias: 0.009209472,
+            cubic: [-0.41027635, 3.1241603, -3.8436399],
+            weights: [0.106640175, -0.027355565, 0.36514208, -0.21978176],
+        },
+        GpiCoeffs {
+            bias: 0.016466456,
+            cubic: [-0.55034894, 3.0952098, -3.4081092],
+            weights: [0.21606494, -0.23160526, 0.5321514, -0.29609936],
+        },
+        GpiCoeffs {
+            bias: 0.010611041,
+            cubic: [-0.47631973, 2.382487, -2.1766648],
+            weights: [0.18949613, -0.2636384, 0.47281513, -0.20222518],
+        },
+        GpiCoeffs {
+            bias: 0.0023429208,
+            cubic: [-0.46568018, 2.107845, -1.6468219],
+            weights: [0.08291135, 0.058726355, -0.05418628, 0.10094653],
+        },
+        GpiCoeffs {
+            bias: -0.0074265697,
+            cubic: [-0.43590337, 1.3088918, -0.613697],
+            weights: [0.24951011, 0.13534762, -0.38124785, 0.28427634],
         },
     ],
 };

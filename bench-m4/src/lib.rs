@@ -5,6 +5,9 @@
 //! * [`PrandtlIshlinskii`]: `N` play operators with thresholds `r_i` and
 //!   weights `w_i`, plus a bias and a linear term:
 //!   `x = b + w_lin·p + Σ w_i·play_{r_i}(p)`. State: the operator outputs.
+//! * [`GeneralizedPi`]: the generalised Prandtl–Ishlinskii model, `N` play
+//!   operators (4 in the bench) plus a cubic input nonlinearity:
+//!   `x = b + c₁p + c₂p² + c₃p³ + Σ w_i·play_{r_i}(p)`.
 //! * [`Preisach`]: an `N × N` half-grid of relays `(α_i, β_j)`, `α_i > β_j`
 //!   (`N(N+1)/2` relays, 136 for `N = 16`), plus a bias and a linear term:
 //!   `x = b + w_lin·p + Σ w_ij·relay_ij(p)`.
@@ -218,6 +221,158 @@ impl<const N: usize> PrandtlIshlinskii<N> {
     pub fn step<const L: usize>(
         &mut self,
         table: &PiTable<N, L>,
+        pressure_mpa: f32,
+        load_n: f32,
+    ) -> f32 {
+        self.update_load(table, load_n);
+        self.update_state(pressure_mpa);
+        self.output()
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Generalised Prandtl–Ishlinskii
+
+/// Coefficients of a generalised Prandtl–Ishlinskii model at one load: a
+/// cubic of the input pressure (the memoryless input nonlinearity) plus
+/// weighted play operators.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpiCoeffs<const N: usize> {
+    /// Bias, contraction.
+    pub bias: f32,
+    /// Cubic input nonlinearity: contraction per MPa, MPa², MPa³.
+    pub cubic: [f32; 3],
+    /// Operator weights, contraction per MPa.
+    pub weights: [f32; N],
+}
+
+/// A generalised Prandtl–Ishlinskii model identified at a grid of `L` loads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpiTable<const N: usize, const L: usize> {
+    /// Play thresholds `r_i`, MPa.
+    pub thresholds_mpa: [f32; N],
+    /// First grid load, N.
+    pub min_load_n: f32,
+    /// Grid step, N.
+    pub load_step_n: f32,
+    /// Coefficients at each grid load.
+    pub grid: [GpiCoeffs<N>; L],
+}
+
+impl<const N: usize, const L: usize> GpiTable<N, L> {
+    /// Coefficients at `load_n`, interpolated linearly between grid loads
+    /// (clamped to the grid).
+    pub fn at_load(&self, load_n: f32) -> GpiCoeffs<N> {
+        let (k, t) = grid_position(load_n, self.min_load_n, self.load_step_n, L);
+        let (Some(a), Some(b)) = (self.grid.get(k), self.grid.get(k + 1).or(self.grid.get(k)))
+        else {
+            return GpiCoeffs {
+                bias: 0.0,
+                cubic: [0.0; 3],
+                weights: [0.0; N],
+            };
+        };
+        let mut weights = a.weights;
+        for (w, &wb) in weights.iter_mut().zip(b.weights.iter()) {
+            *w = lerp(*w, wb, t);
+        }
+        let mut cubic = a.cubic;
+        for (c, &cb) in cubic.iter_mut().zip(b.cubic.iter()) {
+            *c = lerp(*c, cb, t);
+        }
+        GpiCoeffs {
+            bias: lerp(a.bias, b.bias, t),
+            cubic,
+            weights,
+        }
+    }
+}
+
+/// A running generalised Prandtl–Ishlinskii model:
+/// `x = b + c₁p + c₂p² + c₃p³ + Σ w_i·play_{r_i}(p)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeneralizedPi<const N: usize> {
+    thresholds_mpa: [f32; N],
+    coeffs: GpiCoeffs<N>,
+    load_n: f32,
+    last_mpa: f32,
+    plays: [f32; N],
+}
+
+impl<const N: usize> GeneralizedPi<N> {
+    /// A model at `load_n` with every operator at `pressure_mpa`.
+    pub fn new<const L: usize>(table: &GpiTable<N, L>, load_n: f32, pressure_mpa: f32) -> Self {
+        let p = if pressure_mpa.is_finite() {
+            pressure_mpa
+        } else {
+            0.0
+        };
+        GeneralizedPi {
+            thresholds_mpa: table.thresholds_mpa,
+            coeffs: table.at_load(load_n),
+            load_n,
+            last_mpa: p,
+            plays: [p; N],
+        }
+    }
+
+    /// The active load, N.
+    pub fn load_n(&self) -> f32 {
+        self.load_n
+    }
+
+    /// The play operators' outputs, MPa.
+    pub fn plays(&self) -> &[f32; N] {
+        &self.plays
+    }
+
+    /// The last finite pressure, MPa.
+    pub fn last_mpa(&self) -> f32 {
+        self.last_mpa
+    }
+
+    /// Switch the active load when `load_n` is more than
+    /// [`LOAD_THRESHOLD_N`] from it (non-finite loads are ignored).
+    #[inline(always)]
+    pub fn update_load<const L: usize>(&mut self, table: &GpiTable<N, L>, load_n: f32) {
+        let d = load_n - self.load_n;
+        if d.abs() > LOAD_THRESHOLD_N {
+            self.load_n = load_n;
+            self.coeffs = table.at_load(load_n);
+        }
+    }
+
+    /// Move the play operators to `pressure_mpa` (a non-finite pressure
+    /// holds them).
+    #[inline(always)]
+    pub fn update_state(&mut self, pressure_mpa: f32) {
+        if !pressure_mpa.is_finite() {
+            return;
+        }
+        let p = pressure_mpa;
+        self.last_mpa = p;
+        for (z, &r) in self.plays.iter_mut().zip(self.thresholds_mpa.iter()) {
+            *z = clamp(*z, p - r, p + r);
+        }
+    }
+
+    /// The predicted contraction for the current state.
+    #[inline(always)]
+    pub fn output(&self) -> f32 {
+        let c = &self.coeffs;
+        let p = self.last_mpa;
+        let mut x = c.bias + p * (c.cubic[0] + p * (c.cubic[1] + p * c.cubic[2]));
+        for (&w, &z) in c.weights.iter().zip(self.plays.iter()) {
+            x += w * z;
+        }
+        x
+    }
+
+    /// One sample: load, state, output (contraction).
+    #[inline]
+    pub fn step<const L: usize>(
+        &mut self,
+        table: &GpiTable<N, L>,
         pressure_mpa: f32,
         load_n: f32,
     ) -> f32 {
@@ -607,5 +762,40 @@ mod tests {
         assert_eq!(k, 1);
         assert!((t - 0.5).abs() < 1e-6);
         assert_eq!(grid_position(100.0, 100.0, 100.0, 1), (0, 0.0));
+    }
+
+    #[test]
+    fn generalised_pi_is_the_cubic_plus_the_plays() {
+        let c = |bias: f32| GpiCoeffs {
+            bias,
+            cubic: [0.3, -0.2, 0.5],
+            weights: [0.1, -0.05],
+        };
+        let t = GpiTable::<2, 2> {
+            thresholds_mpa: [0.02, 0.08],
+            min_load_n: 100.0,
+            load_step_n: 100.0,
+            grid: [c(0.01), c(0.03)],
+        };
+        let mut m = GeneralizedPi::new(&t, 100.0, 0.0);
+        // Up to 0.3 MPa, then back to 0.2: the plays lag by their thresholds.
+        let mut x = 0.0;
+        for k in 0..=30 {
+            x = m.step(&t, 0.01 * k as f32, 100.0);
+        }
+        let cubic = |p: f32| 0.01 + p * (0.3 + p * (-0.2 + p * 0.5));
+        let up = cubic(0.3) + 0.1 * (0.3 - 0.02) - 0.05 * (0.3 - 0.08);
+        assert!((x - up).abs() < 1e-6, "{x} vs {up}");
+        for k in 1..=10 {
+            x = m.step(&t, 0.3 - 0.01 * k as f32, 100.0);
+        }
+        // The narrow play follows (0.2 + 0.02), the wide one holds at 0.22.
+        let down = cubic(0.2) + 0.1 * (0.2 + 0.02) - 0.05 * 0.22;
+        assert!((x - down).abs() < 1e-6, "{x} vs {down}");
+        // A load step interpolates the bias (150 N: halfway).
+        let y = m.step(&t, 0.2, 150.0);
+        assert!((y - (down + 0.01)).abs() < 1e-6, "{y}");
+        // A non-finite pressure holds the state.
+        assert_eq!(m.step(&t, f32::NAN, 150.0), y);
     }
 }

@@ -53,14 +53,21 @@ pub mod board;
 #[allow(unsafe_code)]
 #[used]
 #[link_section = ".pam_coeffs"]
-pub static COEFFS_BLOB: [u8; pam_core::blob::BLOB_LEN] =
+pub static COEFFS_BLOB: [u8; pam_core::blob::MAX_BLOB_LEN] =
     *include_bytes!(concat!(env!("OUT_DIR"), "/coeffs.bin"));
 
 /// The blob in flash, read at run time: `black_box` keeps the compiler from
-/// folding the build-time bytes, so a rewritten sector takes effect.
+/// folding the build-time bytes, so a rewritten sector takes effect. The
+/// region holds the longest blob of any version; a shorter one (version 1)
+/// is followed by erased bytes, and the header's length says where it ends
+/// (no blob header: the whole region, which the decoder refuses).
 #[cfg(all(target_os = "none", feature = "rt"))]
 pub fn coeffs_blob() -> &'static [u8] {
-    core::hint::black_box(&COEFFS_BLOB)
+    let region: &'static [u8] = core::hint::black_box(&COEFFS_BLOB);
+    match pam_core::blob::framed_len(region) {
+        Some(len) => region.get(..len).unwrap_or(region),
+        None => region,
+    }
 }
 
 pub use controller::{Controller, ControllerConfig, Fault, Io, SafetyConfig, Step};

@@ -100,7 +100,7 @@ fn halt() -> ! {
 
 #[entry]
 fn main() -> ! {
-    let config = ControllerConfig::DEFAULT;
+    let mut config = ControllerConfig::DEFAULT;
     let safe = config.safety.safe_state;
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         halt()
@@ -120,8 +120,13 @@ fn main() -> ! {
         wiring::CONTROL_HZ
     );
 
-    let coeffs = match pam_core::blob::decode(firmware::coeffs_blob()) {
-        Ok(c) => c,
+    let blob = firmware::coeffs_blob();
+    let coeffs = match firmware::controller::model_from_blob(blob, config.feedforward) {
+        Ok((c, feedforward)) => {
+            // A model with non-local memory runs the memory feedforward.
+            config.feedforward = feedforward;
+            c
+        }
         Err(e) => {
             defmt::error!(
                 "boot: coefficient blob refused: {}; valves safe, no control",
@@ -148,7 +153,7 @@ fn main() -> ! {
     };
     defmt::info!(
         "boot: coefficient blob accepted ({} bytes), load {} N",
-        pam_core::blob::BLOB_LEN,
+        blob.len(),
         load_n
     );
     if board.watchdog_reset {

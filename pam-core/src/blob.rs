@@ -12,15 +12,62 @@
 //!
 //! [`decode`] checks magic, version, length and CRC, then validates the
 //! parameters with [`Coeffs::new`]: a blob that decodes is a model that runs.
+//!
+//! # Version 2: the model with its effects
+//!
+//! Version 2 carries the same 14 parameters and the effects the model has
+//! (the paper's future work, [`crate::effects`]), [`BLOB_V2_LEN`] bytes:
+//!
+//! | offset | size | field |
+//! |---|---|---|
+//! | 0 | 4 | magic `b"PAMC"` |
+//! | 4 | 2 | format version ([`BLOB_VERSION_V2`]) |
+//! | 6 | 2 | payload length in bytes ([`PAYLOAD_V2_LEN`]) |
+//! | 8 | 56 | the 14 `f32` fields of [`Params`], in declaration order |
+//! | 64 | 4 | effect flags, `u32`: [`FLAG_MEMORY`], [`FLAG_RATE`], [`FLAG_CREEP`], [`FLAG_WIDTH`]; any other bit set is refused |
+//! | 68 | 8 | non-local memory: `shape`, `merge_span` |
+//! | 76 | 16 | rate dependence: `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s` |
+//! | 92 | 8 | creep: `gain`, `time_constant_s` |
+//! | 100 | 8 | load-dependent width: `scale_at_min_load`, `scale_per_step` |
+//! | 108 | 4 | CRC-32 of bytes 0..108 |
+//!
+//! An effect whose flag is clear has its fields written as zeros, and they
+//! must be zero to decode (one encoding per model). [`decode_model`] reads
+//! both versions (version 1: no effects), checks framing and CRC and
+//! validates the parameters and the effects; a reader that cannot run an
+//! effect refuses the blob (the firmware runs the memory only).
 
 use crate::coeffs::Coeffs;
+use crate::effects::{Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence};
 use crate::error::Error;
 use crate::params::{CriticalPoints, Params, Point};
 
 /// Magic bytes at the start of a blob.
 pub const BLOB_MAGIC: [u8; 4] = *b"PAMC";
-/// Format version this crate writes and reads.
+/// Format version 1 (the paper's parameters only), which [`encode`] writes
+/// and [`decode`] reads.
 pub const BLOB_VERSION: u16 = 1;
+/// Format version 2 (parameters and effects), which [`encode_v2`] writes;
+/// [`decode_model`] reads both.
+pub const BLOB_VERSION_V2: u16 = 2;
+/// Effect flag: non-local memory.
+pub const FLAG_MEMORY: u32 = 1 << 0;
+/// Effect flag: rate dependence.
+pub const FLAG_RATE: u32 = 1 << 1;
+/// Effect flag: creep.
+pub const FLAG_CREEP: u32 = 1 << 2;
+/// Effect flag: load-dependent width.
+pub const FLAG_WIDTH: u32 = 1 << 3;
+/// Every flag this crate knows.
+pub const KNOWN_FLAGS: u32 = FLAG_MEMORY | FLAG_RATE | FLAG_CREEP | FLAG_WIDTH;
+/// `f32` fields of the effects in a version-2 payload.
+pub const EFFECT_FIELDS: usize = 10;
+/// Version-2 payload length, bytes: parameters, flags, effect fields.
+pub const PAYLOAD_V2_LEN: usize = 4 * PAYLOAD_FIELDS + 4 + 4 * EFFECT_FIELDS;
+/// Version-2 blob length, bytes.
+pub const BLOB_V2_LEN: usize = 8 + PAYLOAD_V2_LEN + 4;
+/// The longest blob of any version this crate reads, bytes.
+pub const MAX_BLOB_LEN: usize = BLOB_V2_LEN;
 /// Number of `f32` fields in the payload.
 pub const PAYLOAD_FIELDS: usize = Params::FIELD_COUNT;
 /// Payload length, bytes.
@@ -125,6 +172,177 @@ pub fn decode_params(bytes: &[u8]) -> Result<Params, Error> {
     Ok(from_fields(&f))
 }
 
+/// The effect flags and fields of `e`, in the version-2 layout.
+fn effect_fields(e: &Effects) -> (u32, [f32; EFFECT_FIELDS]) {
+    let mut flags = 0;
+    let mut f = [0.0f32; EFFECT_FIELDS];
+    if let Some(m) = e.memory {
+        flags |= FLAG_MEMORY;
+        f[0] = m.shape;
+        f[1] = m.merge_span;
+    }
+    if let Some(r) = e.rate {
+        flags |= FLAG_RATE;
+        f[2] = r.scale_at_rest;
+        f[3] = r.scale_per_mpa_per_s;
+        f[4] = r.exponent;
+        f[5] = r.filter_time_s;
+    }
+    if let Some(c) = e.creep {
+        flags |= FLAG_CREEP;
+        f[6] = c.gain;
+        f[7] = c.time_constant_s;
+    }
+    if let Some(w) = e.width {
+        flags |= FLAG_WIDTH;
+        f[8] = w.scale_at_min_load;
+        f[9] = w.scale_per_step;
+    }
+    (flags, f)
+}
+
+/// The effects of version-2 flags and fields; fields of an absent effect
+/// must be zero.
+fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> {
+    if flags & !KNOWN_FLAGS != 0 {
+        return Err(Error::Blob("unknown effect flags"));
+    }
+    let on = |flag: u32, fields: &[f32]| -> Result<bool, Error> {
+        let present = flags & flag != 0;
+        if !present && fields.iter().any(|v| v.to_bits() != 0) {
+            return Err(Error::Blob("fields of an absent effect are not zero"));
+        }
+        Ok(present)
+    };
+    let e = Effects {
+        memory: on(FLAG_MEMORY, &f[0..2])?.then_some(NonLocalMemory {
+            shape: f[0],
+            merge_span: f[1],
+        }),
+        rate: on(FLAG_RATE, &f[2..6])?.then_some(RateDependence {
+            scale_at_rest: f[2],
+            scale_per_mpa_per_s: f[3],
+            exponent: f[4],
+            filter_time_s: f[5],
+        }),
+        creep: on(FLAG_CREEP, &f[6..8])?.then_some(Creep {
+            gain: f[6],
+            time_constant_s: f[7],
+        }),
+        width: on(FLAG_WIDTH, &f[8..10])?.then_some(LoadDependentWidth {
+            scale_at_min_load: f[8],
+            scale_per_step: f[9],
+        }),
+    };
+    Ok(e)
+}
+
+/// Encode `params` and `effects` in format version 2 (not validated here:
+/// validate with [`Coeffs::new`] and [`Effects::validate`] first).
+pub fn encode_v2(params: &Params, effects: &Effects) -> [u8; BLOB_V2_LEN] {
+    let mut out = [0u8; BLOB_V2_LEN];
+    out[0..4].copy_from_slice(&BLOB_MAGIC);
+    out[4..6].copy_from_slice(&BLOB_VERSION_V2.to_le_bytes());
+    out[6..8].copy_from_slice(&(PAYLOAD_V2_LEN as u16).to_le_bytes());
+    let (flags, ef) = effect_fields(effects);
+    let p_end = 8 + PAYLOAD_LEN;
+    for (chunk, v) in out[8..p_end].chunks_exact_mut(4).zip(fields(params)) {
+        chunk.copy_from_slice(&v.to_le_bytes());
+    }
+    out[p_end..p_end + 4].copy_from_slice(&flags.to_le_bytes());
+    let body = 8 + PAYLOAD_V2_LEN;
+    for (chunk, v) in out[p_end + 4..body].chunks_exact_mut(4).zip(ef) {
+        chunk.copy_from_slice(&v.to_le_bytes());
+    }
+    let crc = crc32(&out[..body]);
+    out[body..].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// Length of the blob framed at the start of `bytes` (its header's payload
+/// length plus header and CRC), for a blob stored in a larger region; `None`
+/// without a blob's magic and version there.
+pub fn framed_len(bytes: &[u8]) -> Option<usize> {
+    let head = bytes.get(0..8)?;
+    if head[0..4] != BLOB_MAGIC {
+        return None;
+    }
+    let version = u16::from_le_bytes([head[4], head[5]]);
+    if version != BLOB_VERSION && version != BLOB_VERSION_V2 {
+        return None;
+    }
+    let len = 8 + usize::from(u16::from_le_bytes([head[6], head[7]])) + 4;
+    (len <= bytes.len()).then_some(len)
+}
+
+/// Decode a blob of either version to its parameters and effects, checking
+/// framing and CRC only.
+pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
+    if bytes.len() < 8 || bytes[0..4] != BLOB_MAGIC {
+        return Err(Error::Blob("bad magic"));
+    }
+    match u16::from_le_bytes([bytes[4], bytes[5]]) {
+        BLOB_VERSION => decode_params(bytes).map(|p| (p, Effects::NONE)),
+        BLOB_VERSION_V2 => {
+            if bytes.len() != BLOB_V2_LEN {
+                return Err(Error::Blob("wrong length"));
+            }
+            if usize::from(u16::from_le_bytes([bytes[6], bytes[7]])) != PAYLOAD_V2_LEN {
+                return Err(Error::Blob("wrong payload length"));
+            }
+            let body = 8 + PAYLOAD_V2_LEN;
+            let stored = u32::from_le_bytes([
+                bytes[body],
+                bytes[body + 1],
+                bytes[body + 2],
+                bytes[body + 3],
+            ]);
+            if crc32(&bytes[..body]) != stored {
+                return Err(Error::Blob("CRC mismatch"));
+            }
+            let word = |i: usize| [bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]];
+            let mut f = [0f32; PAYLOAD_FIELDS];
+            for (k, v) in f.iter_mut().enumerate() {
+                *v = f32::from_le_bytes(word(8 + 4 * k));
+            }
+            let p_end = 8 + PAYLOAD_LEN;
+            let flags = u32::from_le_bytes(word(p_end));
+            let mut ef = [0f32; EFFECT_FIELDS];
+            for (k, v) in ef.iter_mut().enumerate() {
+                *v = f32::from_le_bytes(word(p_end + 4 + 4 * k));
+            }
+            Ok((from_fields(&f), effects_from(flags, &ef)?))
+        }
+        _ => Err(Error::Blob("unsupported version")),
+    }
+}
+
+/// Decode and validate a blob of either version: the coefficients and the
+/// effects (none for version 1). Any defect is an [`Error::Blob`], the
+/// validation error of [`Coeffs::new`] or of [`Effects::validate`].
+///
+/// ```
+/// use pam_core::blob::{decode_model, encode, encode_v2};
+/// use pam_core::effects::NonLocalMemory;
+/// use pam_core::{Effects, Params};
+///
+/// let with_memory = Effects {
+///     memory: Some(NonLocalMemory { shape: 1.0, merge_span: 0.1 }),
+///     ..Effects::NONE
+/// };
+/// let (c, e) = decode_model(&encode_v2(&Params::DEFAULT, &with_memory)).unwrap();
+/// assert_eq!((c.params(), e), (&Params::DEFAULT, with_memory));
+/// // Version 1 is still read: the paper's model, no effects.
+/// let (_, e) = decode_model(&encode(&Params::DEFAULT)).unwrap();
+/// assert_eq!(e, Effects::NONE);
+/// ```
+pub fn decode_model(bytes: &[u8]) -> Result<(Coeffs, Effects), Error> {
+    let (params, effects) = decode_model_params(bytes)?;
+    let coeffs = Coeffs::new(params)?;
+    effects.validate()?;
+    Ok((coeffs, effects))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -170,5 +388,112 @@ mod tests {
             decode(&encode(&p)),
             Err(Error::NonFinite("ellipse_height_mpa"))
         );
+    }
+
+    fn with_every_effect() -> Effects {
+        Effects {
+            memory: Some(NonLocalMemory {
+                shape: 1.5,
+                merge_span: 0.11,
+            }),
+            rate: Some(RateDependence {
+                scale_at_rest: 1.0,
+                scale_per_mpa_per_s: 0.8,
+                exponent: 0.5,
+                filter_time_s: 0.19,
+            }),
+            creep: Some(Creep {
+                gain: 0.2,
+                time_constant_s: 1.5,
+            }),
+            width: Some(LoadDependentWidth {
+                scale_at_min_load: 0.8,
+                scale_per_step: 0.1,
+            }),
+        }
+    }
+
+    #[test]
+    fn v2_round_trips_every_combination_of_effects() {
+        let all = with_every_effect();
+        for mask in 0..16u32 {
+            let e = Effects {
+                memory: all.memory.filter(|_| mask & FLAG_MEMORY != 0),
+                rate: all.rate.filter(|_| mask & FLAG_RATE != 0),
+                creep: all.creep.filter(|_| mask & FLAG_CREEP != 0),
+                width: all.width.filter(|_| mask & FLAG_WIDTH != 0),
+            };
+            let blob = encode_v2(&Params::DEFAULT, &e);
+            assert_eq!(
+                u32::from_le_bytes([blob[64], blob[65], blob[66], blob[67]]),
+                mask
+            );
+            let (c, back) = decode_model(&blob).unwrap();
+            assert_eq!(c.params(), &Params::DEFAULT);
+            assert_eq!(back, e);
+            assert_eq!(
+                framed_len(&[&blob[..], &[0xFF; 7]].concat()),
+                Some(BLOB_V2_LEN)
+            );
+        }
+    }
+
+    #[test]
+    fn v1_is_still_read_as_a_model_without_effects() {
+        let blob = encode(&Params::DEFAULT);
+        let (c, e) = decode_model(&blob).unwrap();
+        assert_eq!(c.params(), &Params::DEFAULT);
+        assert_eq!(e, Effects::NONE);
+        assert_eq!(framed_len(&blob), Some(BLOB_LEN));
+        // And `decode` (version 1 only) refuses a version-2 blob.
+        let v2 = encode_v2(&Params::DEFAULT, &Effects::NONE);
+        assert_eq!(decode(&v2), Err(Error::Blob("wrong length")));
+    }
+
+    #[test]
+    fn every_single_bit_flip_of_a_v2_blob_is_refused() {
+        let blob = encode_v2(&Params::DEFAULT, &with_every_effect());
+        for i in 0..BLOB_V2_LEN * 8 {
+            let mut b = blob;
+            b[i / 8] ^= 1 << (i % 8);
+            assert!(decode_model(&b).is_err(), "bit {i}");
+        }
+    }
+
+    /// Re-frame a version-2 blob after editing its body.
+    fn refresh_crc(b: &mut [u8; BLOB_V2_LEN]) {
+        let body = 8 + PAYLOAD_V2_LEN;
+        let crc = crc32(&b[..body]);
+        b[body..].copy_from_slice(&crc.to_le_bytes());
+    }
+
+    #[test]
+    fn unknown_flags_stray_fields_and_invalid_effects_are_refused() {
+        let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
+        b[64] = 1 << 4;
+        refresh_crc(&mut b);
+        assert_eq!(decode_model(&b), Err(Error::Blob("unknown effect flags")));
+        let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
+        b[70] = 0x3F; // a memory field without the memory flag
+        refresh_crc(&mut b);
+        assert_eq!(
+            decode_model(&b),
+            Err(Error::Blob("fields of an absent effect are not zero"))
+        );
+        let bad = Effects {
+            memory: Some(NonLocalMemory {
+                shape: 99.0,
+                merge_span: 1.0,
+            }),
+            ..Effects::NONE
+        };
+        assert!(matches!(
+            decode_model(&encode_v2(&Params::DEFAULT, &bad)),
+            Err(Error::OutOfRange("memory.shape", _))
+        ));
+        let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
+        b[4] = 3;
+        assert_eq!(decode_model(&b), Err(Error::Blob("unsupported version")));
+        assert_eq!(framed_len(&b), None);
     }
 }

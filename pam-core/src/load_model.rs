@@ -31,11 +31,16 @@
 //! pressure grids at 100–600 N; checked by a unit test).
 //!
 //! # Cost
-//! Building a model (at start-up and on every load switch) solves the inverse
-//! precisely at [`INVERSE_INTERVALS`]` + 1` pressures per branch. Per sample,
-//! the inverse is then one table look-up indexed directly by pressure (no
-//! search), a linear interpolation and one Newton step kept inside the table
-//! interval: fixed work, two divisions and one square root.
+//! Building a model solves the inverse precisely at
+//! [`INVERSE_INTERVALS`]` + 1` pressures per branch (at most
+//! [`BUILD_UNITS_MAX`] work units of a few dozen `f32` operations each). At
+//! start-up that happens at once; after a load switch [`crate::Tracker`] can
+//! spread it over several control periods, during which the new model
+//! evaluates forward at full speed and its inverse falls back to a slower
+//! table-free solve ([`LoadModel::inverse_ready`]). Per sample, the inverse is one
+//! table look-up indexed directly by pressure (no search), a linear
+//! interpolation and one Newton step kept inside the table interval: fixed
+//! work, two divisions and one square root.
 
 use crate::branch::Branch;
 use crate::load_family::LoadCubic;
@@ -50,6 +55,144 @@ const BUILD_KNOTS: usize = 33;
 
 /// Safeguarded Newton iterations per table entry while building.
 const BUILD_ITERATIONS: usize = 12;
+
+/// Bisection steps of the inverse while the tables are being built
+/// ([`LoadModel::inverse_ready`]): a stroke of 0.2 over 2¹² is 5·10⁻⁵.
+pub const FALLBACK_BISECTION_STEPS: usize = 12;
+
+/// A Newton step of the table build that moves contraction by less than
+/// this ends the entry (a few `f32` ulps of a contraction near 0.1; the
+/// table is then as precise as `f32` allows).
+const BUILD_CONVERGED: f32 = 1e-7;
+
+/// Work units a complete [`TableBuild`] can take at most: per branch one per
+/// hull knot, and per table entry one for the bracket and up to
+/// [`BUILD_ITERATIONS`] Newton steps.
+pub const BUILD_UNITS_MAX: usize =
+    2 * (BUILD_KNOTS + (INVERSE_INTERVALS + 1) * (1 + BUILD_ITERATIONS));
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stage {
+    Hull,
+    Bracket,
+    Solve,
+    Done,
+}
+
+/// Progress of the inverse tables' construction, resumable so that it can
+/// be spread over several control periods ([`crate::Tracker`] builds the
+/// next load's tables while the active model keeps running). One work unit
+/// is one forward evaluation, one table bracket or one Newton step: at most
+/// a few dozen `f32` operations, one division and one square root.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct TableBuild {
+    stage: Stage,
+    branch: Branch,
+    /// The branch's monotone hull on the knots.
+    hull: [f32; BUILD_KNOTS],
+    running: f32,
+    /// Hull knot (stage `Hull`), then the bracket cursor.
+    j: usize,
+    /// Table entry being solved.
+    k: usize,
+    p: f32,
+    lo: f32,
+    hi: f32,
+    x: f32,
+    iteration: u8,
+}
+
+impl TableBuild {
+    pub(crate) fn new() -> TableBuild {
+        TableBuild {
+            stage: Stage::Hull,
+            branch: Branch::Contraction,
+            hull: [0.0; BUILD_KNOTS],
+            running: 0.0,
+            j: 0,
+            k: 0,
+            p: 0.0,
+            lo: 0.0,
+            hi: 0.0,
+            x: 0.0,
+            iteration: 0,
+        }
+    }
+}
+
+/// The load family (eqs. 16–19) in `f32`, for building a [`LoadModel`] at
+/// any load on the chip without soft-float `f64`: made once from the
+/// validated `f64` [`LoadFamily`](crate::LoadFamily).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub(crate) struct FamilyF32 {
+    min_load_n: f32,
+    max_load_n: f32,
+    steps_per_n: f32,
+    root: f32,
+    max_contraction: f32,
+    b: f32,
+    c: f32,
+    root_regression_per_step: f32,
+    max_regression_per_step: f32,
+    c_growth_per_step: f32,
+    height_mpa: f32,
+    max_pressure_mpa: f32,
+}
+
+impl FamilyF32 {
+    pub(crate) fn new(f: &crate::LoadFamily) -> FamilyF32 {
+        FamilyF32 {
+            min_load_n: f.min_load_n as f32,
+            max_load_n: f.max_load_n as f32,
+            steps_per_n: (1.0 / f.load_step_n) as f32,
+            root: f.root_contraction as f32,
+            max_contraction: f.max_contraction as f32,
+            b: f.b as f32,
+            c: f.c as f32,
+            root_regression_per_step: f.root_regression_per_step as f32,
+            max_regression_per_step: f.max_regression_per_step as f32,
+            c_growth_per_step: f.c_growth_per_step as f32,
+            height_mpa: f.ellipse_height_mpa as f32,
+            max_pressure_mpa: f.max_pressure_mpa as f32,
+        }
+    }
+
+    /// The model at `load_n` (clamped to the calibrated range, NaN → the
+    /// minimum load) without its inverse tables, eqs. (16)–(21) and (24):
+    /// fixed work, four divisions.
+    pub(crate) fn model_without_tables(&self, load_n: f32) -> LoadModel {
+        let load_n = clamp(load_n, self.min_load_n, self.max_load_n);
+        let s = (load_n - self.min_load_n) * self.steps_per_n;
+        // eqs. (17), (18), (19)
+        let root = self.root - self.root_regression_per_step * s;
+        let rx = self.max_contraction - self.max_regression_per_step * s;
+        let c = self.c + self.c_growth_per_step * s;
+        let (b, pmax) = (self.b, self.max_pressure_mpa);
+        // eq. (16): the amplitude that puts CM_i(Rx_i) = Pmax.
+        let a = ((pmax + c * root) / (rx * rx) - (c + b * root) / rx + b) / (rx - root);
+        // eq. (24): ae_i = (Rx_i − R_i)/2, centre R_i + ae_i (corrected).
+        let half_width = 0.5 * (rx - root);
+        let k = self.height_mpa / half_width;
+        LoadModel::from_coefficients(
+            load_n,
+            root,
+            rx,
+            [a, b, c],
+            self.height_mpa,
+            root + half_width,
+            k * k,
+            pmax,
+        )
+    }
+
+    /// The complete model at `load_n` (clamped), tables built at once.
+    pub(crate) fn model(&self, load_n: f32) -> LoadModel {
+        let mut m = self.model_without_tables(load_n);
+        m.build_tables();
+        m
+    }
+}
 
 /// Bound on `|pressure_mpa(contraction(p, br), br) − p|` on the strictly
 /// increasing part of a branch, MPa; checked by the unit and property tests.
@@ -88,113 +231,203 @@ pub struct LoadModel {
     /// Contraction at pressures `k·Pmax/INVERSE_INTERVALS` on each branch,
     /// `[contraction, expansion]`; the last entry is the left limit at `Pmax`.
     inverse_table: [[f32; INVERSE_INTERVALS + 1]; 2],
+    /// Both inverse tables are complete (else [`Self::contraction`] solves
+    /// by bisection, see [`Self::inverse_ready`]).
+    tables_ready: bool,
 }
 
 impl LoadModel {
     /// The `f32` model of `at` with its inverse tables (the load family's
-    /// `f64` construction rounded once).
+    /// `f64` construction rounded once): the host path.
     pub(crate) fn new(at: &LoadCubic) -> LoadModel {
-        let root = at.cubic.root as f32;
-        let max_contraction = at.max_contraction as f32;
         let ellipse = at.ellipse();
-        let height_mpa = at.ellipse_height_mpa as f32;
-        let max_pressure_mpa = at.max_pressure_mpa as f32;
-        let mut model = LoadModel {
-            load_n: at.load_n as f32,
-            root,
-            max_contraction,
-            a: at.cubic.a as f32,
-            b: at.cubic.b as f32,
-            c: at.cubic.c as f32,
-            height_mpa,
+        let mut model = LoadModel::from_coefficients(
+            at.load_n as f32,
+            at.cubic.root as f32,
+            at.max_contraction as f32,
+            [at.cubic.a as f32, at.cubic.b as f32, at.cubic.c as f32],
+            at.ellipse_height_mpa as f32,
             // eq. (24), centre corrected to R_i + ae_i (see `Ellipse::centre`).
-            centre: ellipse.centre() as f32,
-            ellipse_k2: ellipse.k2() as f32,
-            max_pressure_mpa,
-            intervals_per_mpa: INVERSE_INTERVALS as f32 / max_pressure_mpa,
-            inverse_table: [[0.0; INVERSE_INTERVALS + 1]; 2],
-        };
-        model.inverse_table = [
-            model.build_inverse(Branch::Contraction),
-            model.build_inverse(Branch::Expansion),
-        ];
+            ellipse.centre() as f32,
+            ellipse.k2() as f32,
+            at.max_pressure_mpa as f32,
+        );
+        model.build_tables();
         model
     }
 
-    /// The inverse table of one branch, solved precisely from the branch's
-    /// monotone hull on [`BUILD_KNOTS`] contraction knots.
-    fn build_inverse(&self, branch: Branch) -> [f32; INVERSE_INTERVALS + 1] {
-        let step = (self.max_contraction - self.root) / (BUILD_KNOTS - 1) as f32;
-        let knot = |j: usize| {
-            if j + 1 >= BUILD_KNOTS {
-                self.max_contraction
-            } else {
-                self.root + step * j as f32
-            }
-        };
-        let mut hull = [0.0f32; BUILD_KNOTS];
-        let mut running = 0.0f32;
-        for (j, h) in hull.iter_mut().enumerate() {
-            let p = self.pressure_mpa(knot(j), branch);
-            running = if p > running { p } else { running };
-            *h = running;
+    /// The model without its inverse tables (all entries `R_i`): the start
+    /// of a [`TableBuild`].
+    #[allow(clippy::too_many_arguments)]
+    fn from_coefficients(
+        load_n: f32,
+        root: f32,
+        max_contraction: f32,
+        [a, b, c]: [f32; 3],
+        height_mpa: f32,
+        centre: f32,
+        ellipse_k2: f32,
+        max_pressure_mpa: f32,
+    ) -> LoadModel {
+        LoadModel {
+            load_n,
+            root,
+            max_contraction,
+            a,
+            b,
+            c,
+            height_mpa,
+            centre,
+            ellipse_k2,
+            max_pressure_mpa,
+            intervals_per_mpa: INVERSE_INTERVALS as f32 / max_pressure_mpa,
+            inverse_table: [[root; INVERSE_INTERVALS + 1]; 2],
+            tables_ready: false,
         }
-        let top = hull[BUILD_KNOTS - 1];
-        let mut table = [0.0f32; INVERSE_INTERVALS + 1];
-        for (k, x) in table.iter_mut().enumerate() {
-            let last = k == INVERSE_INTERVALS;
-            // Entry k: sup{x : hull(x) <= p_k}; the last entry: the left limit
-            // at the hull's top, inf{x : hull(x) >= top}.
-            let p = if last {
-                top
-            } else {
-                self.max_pressure_mpa * k as f32 / INVERSE_INTERVALS as f32
-            };
-            let j = if last {
-                hull.iter()
-                    .position(|&h| h >= top)
-                    .unwrap_or(BUILD_KNOTS - 1)
-            } else {
-                // Largest j with hull[j] <= p, then the crossing lies in [j, j + 1].
-                hull.iter().rposition(|&h| h <= p).unwrap_or(0) + 1
-            };
-            *x = if j == 0 {
-                self.root
-            } else if j >= BUILD_KNOTS {
-                self.max_contraction
-            } else {
-                self.solve_crossing(knot(j - 1), knot(j), p, branch, last)
-            };
-        }
-        table
     }
 
-    /// Bracketed Newton with bisection fallback for `branch(x) = p` in
-    /// `[lo, hi]`, where `branch(lo) <= p` and `branch(hi) > p` (or `>= p`
-    /// when `upper`, the left-limit case).
-    fn solve_crossing(&self, mut lo: f32, mut hi: f32, p: f32, branch: Branch, upper: bool) -> f32 {
-        let sign = branch.offset_sign();
-        let mut x = 0.5 * (lo + hi);
-        for _ in 0..BUILD_ITERATIONS {
-            let (g, dg) = self.branch_and_slope(x, sign);
-            let below = if upper { g < p } else { g <= p };
-            if below {
-                lo = x;
-            } else {
-                hi = x;
+    /// Both inverse tables at once (construction on the host or at boot).
+    fn build_tables(&mut self) {
+        let mut build = TableBuild::new();
+        while !self.advance_build(&mut build, u16::MAX) {}
+    }
+
+    /// Advance an inverse-table build of this model by at most `units` work
+    /// units (one forward evaluation or one Newton step each, see
+    /// [`TableBuild`]); `true` once both tables are complete.
+    pub(crate) fn advance_build(&mut self, build: &mut TableBuild, units: u16) -> bool {
+        for _ in 0..units {
+            if self.build_unit(build) {
+                return true;
             }
-            let next = x + (p - g) / dg;
-            x = if next > lo && next < hi {
-                next
-            } else {
-                0.5 * (lo + hi)
-            };
         }
-        if upper {
-            hi
+        build.stage == Stage::Done
+    }
+
+    /// Contraction of hull knot `j` (the last knot is exactly `Rx_i`).
+    #[inline(always)]
+    fn knot(&self, j: usize) -> f32 {
+        if j + 1 >= BUILD_KNOTS {
+            self.max_contraction
         } else {
-            x
+            self.root + (self.max_contraction - self.root) / (BUILD_KNOTS - 1) as f32 * j as f32
         }
+    }
+
+    /// One work unit of the table build; `true` when the build is done.
+    ///
+    /// The table of a branch: the branch's monotone hull (running maximum)
+    /// on [`BUILD_KNOTS`] contraction knots, one knot per unit; then per
+    /// entry `k` (pressure `k·Pmax/INVERSE_INTERVALS`), the bracket from the
+    /// hull, `sup{x : hull(x) <= p_k}` (the last entry: the left limit at
+    /// the hull's top, `inf{x : hull(x) >= top}`), one unit, then a
+    /// bracketed Newton iteration with bisection fallback per unit, at most
+    /// [`BUILD_ITERATIONS`], stopping once a step moves less than
+    /// [`BUILD_CONVERGED`].
+    fn build_unit(&mut self, b: &mut TableBuild) -> bool {
+        match b.stage {
+            Stage::Done => return true,
+            Stage::Hull => {
+                let p = self.pressure_mpa(self.knot(b.j), b.branch);
+                b.running = if p > b.running { p } else { b.running };
+                if let Some(h) = b.hull.get_mut(b.j) {
+                    *h = b.running;
+                }
+                b.j += 1;
+                if b.j >= BUILD_KNOTS {
+                    b.stage = Stage::Bracket;
+                    b.k = 0;
+                    b.j = 0;
+                }
+            }
+            Stage::Bracket => {
+                let last = b.k >= INVERSE_INTERVALS;
+                let top = b.running;
+                let (p, j) = if last {
+                    let j = b
+                        .hull
+                        .iter()
+                        .position(|&h| h >= top)
+                        .unwrap_or(BUILD_KNOTS - 1);
+                    (top, j)
+                } else {
+                    let p = self.max_pressure_mpa * b.k as f32 / INVERSE_INTERVALS as f32;
+                    // The largest j with hull[j] <= p (or 0): p grows with k
+                    // and the hull is non-decreasing, so the cursor only
+                    // moves forward. The crossing lies in [j, j + 1].
+                    while b.hull.get(b.j + 1).is_some_and(|&h| h <= p) {
+                        b.j += 1;
+                    }
+                    (p, b.j + 1)
+                };
+                if j == 0 {
+                    self.finish_entry(b, self.root);
+                } else if j >= BUILD_KNOTS {
+                    self.finish_entry(b, self.max_contraction);
+                } else {
+                    b.p = p;
+                    b.lo = self.knot(j - 1);
+                    b.hi = self.knot(j);
+                    b.x = 0.5 * (b.lo + b.hi);
+                    b.iteration = 0;
+                    b.stage = Stage::Solve;
+                }
+            }
+            Stage::Solve => {
+                // Bracketed Newton with bisection fallback for branch(x) = p
+                // in [lo, hi], where branch(lo) <= p and branch(hi) > p (or
+                // >= p for the last entry, the left-limit case).
+                let upper = b.k >= INVERSE_INTERVALS;
+                let (g, dg) = self.branch_and_slope(b.x, b.branch.offset_sign());
+                let below = if upper { g < b.p } else { g <= b.p };
+                if below {
+                    b.lo = b.x;
+                } else {
+                    b.hi = b.x;
+                }
+                let next = b.x + (b.p - g) / dg;
+                let next = if next > b.lo && next < b.hi {
+                    next
+                } else {
+                    0.5 * (b.lo + b.hi)
+                };
+                let moved = (next - b.x).abs();
+                b.x = next;
+                b.iteration += 1;
+                if upper {
+                    if usize::from(b.iteration) >= BUILD_ITERATIONS {
+                        self.finish_entry(b, b.hi);
+                    }
+                } else if usize::from(b.iteration) >= BUILD_ITERATIONS || moved <= BUILD_CONVERGED {
+                    self.finish_entry(b, b.x);
+                }
+            }
+        }
+        b.stage == Stage::Done
+    }
+
+    /// Store entry `k` of the table being built and move on.
+    fn finish_entry(&mut self, b: &mut TableBuild, x: f32) {
+        let table = match b.branch {
+            Branch::Contraction => &mut self.inverse_table[0],
+            Branch::Expansion => &mut self.inverse_table[1],
+        };
+        if let Some(slot) = table.get_mut(b.k) {
+            *slot = x;
+        }
+        b.k += 1;
+        b.stage = if b.k <= INVERSE_INTERVALS {
+            Stage::Bracket
+        } else if b.branch == Branch::Contraction {
+            *b = TableBuild {
+                branch: Branch::Expansion,
+                ..TableBuild::new()
+            };
+            Stage::Hull
+        } else {
+            self.tables_ready = true;
+            Stage::Done
+        };
     }
 
     /// The load this model is for, N.
@@ -293,12 +526,48 @@ impl LoadModel {
         )
     }
 
+    /// Whether the inverse tables are complete. A model whose tables a
+    /// [`crate::Tracker`] is still building (after a load switch with a
+    /// build budget) evaluates forward at full speed, but its
+    /// [`Self::contraction`] falls back to [`FALLBACK_BISECTION_STEPS`]
+    /// bisection steps on the forward model (about six times the table
+    /// inverse's cost).
+    pub fn inverse_ready(&self) -> bool {
+        self.tables_ready
+    }
+
+    /// The inverse without tables: the largest contraction of the stroke at
+    /// which the (clamped) branch pressure does not exceed `pressure_mpa`
+    /// (clamped to `[0, Pmax]`, NaN → 0), by [`FALLBACK_BISECTION_STEPS`]
+    /// bisection steps on the forward model. Where the branch increases this
+    /// is the table inverse's answer to the bisection's resolution.
+    #[inline(never)]
+    fn contraction_without_tables(&self, pressure_mpa: f32, branch: Branch) -> f32 {
+        let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
+        if p >= self.max_pressure_mpa {
+            return self.max_contraction;
+        }
+        let (mut lo, mut hi) = (self.root, self.max_contraction);
+        for _ in 0..FALLBACK_BISECTION_STEPS {
+            let mid = 0.5 * (lo + hi);
+            if self.pressure_mpa(mid, branch) <= p {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
     /// Inverse model: the contraction at which `branch` has `pressure_mpa`.
     ///
     /// Returns a value in `[R_i, Rx_i]`, never NaN; see the module docs for
     /// the branch ends. Fixed work: one table look-up, one interpolation, one
     /// Newton step (two divisions, one square root).
     pub fn contraction(&self, pressure_mpa: f32, branch: Branch) -> f32 {
+        if !self.tables_ready {
+            return self.contraction_without_tables(pressure_mpa, branch);
+        }
         let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
         if p >= self.max_pressure_mpa {
             return self.max_contraction;
@@ -487,6 +756,27 @@ mod tests {
                 (dip / estimate - 1.0).abs() < 0.05,
                 "{load} N: dip {dip}, estimate {estimate}"
             );
+        }
+    }
+
+    #[test]
+    fn the_inverse_without_tables_agrees_with_the_tables() {
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+        let family = FamilyF32::new(coeffs.family());
+        for load in [100.0, 250.0, 420.0, 600.0] {
+            let (full, bare) = (family.model(load), family.model_without_tables(load));
+            assert!(full.inverse_ready() && !bare.inverse_ready());
+            for i in 0..=1000 {
+                let p = 0.5 * i as f32 / 1000.0;
+                for br in [Branch::Contraction, Branch::Expansion] {
+                    let (a, b) = (full.contraction(p, br), bare.contraction(p, br));
+                    // The bisection's resolution: stroke / 2^12.
+                    assert!(
+                        (a - b).abs() < 1e-4,
+                        "{load} N, {p} MPa, {br:?}: {a} vs {b}"
+                    );
+                }
+            }
         }
     }
 }

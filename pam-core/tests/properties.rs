@@ -89,8 +89,27 @@ proptest! {
     }
 
     #[test]
-    fn arbitrary_blobs_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..100)) {
+    fn arbitrary_blobs_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..130)) {
         let _ = blob::decode(&bytes);
+        let _ = blob::decode_model(&bytes);
+        let _ = blob::framed_len(&bytes);
+    }
+
+    /// A version-2 frame around arbitrary payload bytes (so the CRC passes
+    /// and the flags and fields are what gets tested): never panics, and
+    /// what decodes re-encodes to the same bytes.
+    #[test]
+    fn framed_v2_payloads_decode_or_are_refused(payload in proptest::collection::vec(any::<u8>(), blob::PAYLOAD_V2_LEN)) {
+        let mut b = [0u8; blob::BLOB_V2_LEN];
+        b[0..4].copy_from_slice(&blob::BLOB_MAGIC);
+        b[4..6].copy_from_slice(&blob::BLOB_VERSION_V2.to_le_bytes());
+        b[6..8].copy_from_slice(&(blob::PAYLOAD_V2_LEN as u16).to_le_bytes());
+        b[8..8 + blob::PAYLOAD_V2_LEN].copy_from_slice(&payload);
+        let crc = blob::crc32(&b[..8 + blob::PAYLOAD_V2_LEN]);
+        b[8 + blob::PAYLOAD_V2_LEN..].copy_from_slice(&crc.to_le_bytes());
+        if let Ok((c, e)) = blob::decode_model(&b) {
+            prop_assert_eq!(&blob::encode_v2(c.params(), &e)[..], &b[..]);
+        }
     }
 
     #[test]
@@ -118,5 +137,110 @@ proptest! {
             prop_assert!(u.branch_switch.is_none());
         }
         prop_assert_eq!(t.branch(), br);
+    }
+}
+
+mod memory_inverse {
+    use super::*;
+    use pam_core::effects::{NonLocalMemory, Reversal, ReversalStack};
+
+    /// A stack left by a pressure history through `turns` (alternating
+    /// direction, starting upwards from 0 MPa): at each turn the curve's
+    /// contraction there is pushed as the reversal, as a controller or the
+    /// simulator does.
+    fn history(
+        mem: &NonLocalMemory,
+        m: &pam_core::LoadModel,
+        turns: &[f32],
+    ) -> (ReversalStack<8>, Branch) {
+        let mut stack = ReversalStack::<8>::default();
+        let mut br = Branch::Contraction;
+        let mut last = 0.0f32;
+        for &p in turns {
+            let rising = p > last;
+            if rising != (br == Branch::Contraction) {
+                // The pressure turned at `last`: push it on the old branch's curve.
+                let x = stack.contraction(mem, m, last, br, 1.0);
+                stack.push(Reversal {
+                    pressure_mpa: last,
+                    contraction: x,
+                });
+                br = br.opposite();
+            }
+            stack.contraction(mem, m, p, br, 1.0);
+            last = p;
+        }
+        (stack, br)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(3000))]
+
+        /// The memory inverse undoes the memory's forward curve: at the
+        /// pressure it returns, the curve (with its own wiping-out) is at the
+        /// contraction asked for, wherever the curve reaches it without a
+        /// jump.
+        #[test]
+        fn memory_inverse_reaches_the_contraction(
+            turns in proptest::collection::vec(0.0f32..=0.5, 0..10),
+            t in 0.0f32..=1.0,
+            load in 100.0f32..=600.0,
+            shape in 0.5f32..=20.0,
+            merge_span in prop_oneof![Just(1.0f32), 0.02f32..=1.0],
+            br in branch(),
+        ) {
+            let m = coeffs().load_model(load).unwrap();
+            let mem = NonLocalMemory { shape, merge_span };
+            let (stack, last_br) = history(&mem, &m, &turns);
+            // Keep going on the current branch or reverse at the last point.
+            let mut stack = stack;
+            if br != last_br {
+                let p = *turns.last().unwrap_or(&0.0);
+                let x = stack.contraction(&mem, &m, p, last_br, 1.0);
+                stack.push(Reversal { pressure_mpa: p, contraction: x });
+            }
+            let x_ref = m.root_contraction() + t * (m.max_contraction() - m.root_contraction());
+            let p = stack.inverse_pressure_mpa(&mem, &m, x_ref, br, 1.0);
+            prop_assert!(p.is_finite() && (0.0..=m.max_pressure_mpa()).contains(&p), "p {p}");
+            // The cached loop gives the same answer.
+            prop_assert_eq!(stack.inverse_pressure_mpa(&mem, &m, x_ref, br, 1.0), p);
+            let at = |p: f32| {
+                let mut trial = stack;
+                trial.contraction(&mem, &m, p, br, 1.0)
+            };
+            // Wherever the curve passes through x_ref continuously (two
+            // neighbouring grid pressures bracket it without a jump; the
+            // branch inverse jumps where a clamped branch is flat, and a
+            // minor loop with a large shape need not be monotone), the
+            // inverse finds a pressure where the curve is at x_ref.
+            let pmax = m.max_pressure_mpa();
+            let grid: Vec<f32> = (0..=500).map(|i| at(pmax * i as f32 / 500.0)).collect();
+            // (Not at the grid's ends: a clamped branch reaches Pmax before
+            // Rx, where the curve is flat in pressure.)
+            let inner = &grid[1..grid.len() - 1];
+            let crosses = inner.windows(2).any(|w| {
+                (w[0] - x_ref) * (w[1] - x_ref) <= 0.0 && (w[1] - w[0]).abs() < 2e-3
+            });
+            let x = at(p);
+            let ok = !crosses || (x - x_ref).abs() <= 1e-3;
+            prop_assert!(ok, "x_ref {x_ref} -> p {p} -> x {x}; stack {:?}", stack.points());
+        }
+
+        #[test]
+        fn memory_inverse_is_finite_on_any_input(
+            x in any_f32(),
+            load in any_f32(),
+            turns in proptest::collection::vec(any_f32(), 0..6),
+            br in branch(),
+        ) {
+            let m = coeffs().load_model_clamped(load);
+            let mem = NonLocalMemory::with_shape(2.0);
+            let mut stack = ReversalStack::<8>::default();
+            for (i, &p) in turns.iter().enumerate() {
+                stack.push(Reversal { pressure_mpa: p, contraction: 0.01 * i as f32 });
+            }
+            let p = stack.inverse_pressure_mpa(&mem, &m, x, br, 1.0);
+            prop_assert!(p.is_finite() && (0.0..=m.max_pressure_mpa()).contains(&p), "p {p}");
+        }
     }
 }

@@ -1,19 +1,24 @@
 //! Model files: the JSON model (units in the keys), the firmware's coefficient
 //! blob (`pam_core::blob`: magic, version, CRC-32), and a Rust source file of
-//! constants.
+//! constants — for the paper's model and for a model with effects
+//! ([`write_model_files`]: JSON version 2 with an `effects` object, blob
+//! version 2, an `EFFECTS` constant).
 
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use pam_core::{blob, Coeffs, Params};
+use pam_core::{blob, Coeffs, Effects, Params};
 use serde::{Deserialize, Serialize};
 
 use crate::stats::ErrorTable;
 
 /// Format tag of the JSON model file.
 pub const FORMAT: &str = "pam-lab model";
-/// Version of the JSON model file this crate writes and reads.
+/// Version of the JSON model file of the paper's model (no effects).
 pub const VERSION: u32 = 1;
+/// Version of the JSON model file of a model with effects (the `effects`
+/// key); [`load`] reads both.
+pub const VERSION_EFFECTS: u32 = 2;
 
 /// How a model was fitted: enough to reproduce it and judge it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -48,6 +53,10 @@ pub struct ModelFile {
     pub version: u32,
     /// The model.
     pub params: Params,
+    /// The effects the model has beyond the paper's (`pam_core::effects`);
+    /// absent in a version-1 file.
+    #[serde(default, skip_serializing_if = "no_effects")]
+    pub effects: Effects,
     /// How it was fitted, when it was.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fit: Option<FitSummary>,
@@ -56,10 +65,21 @@ pub struct ModelFile {
 impl ModelFile {
     /// A model file for `params`.
     pub fn new(params: Params, fit: Option<FitSummary>) -> ModelFile {
+        ModelFile::with_effects(params, Effects::NONE, fit)
+    }
+
+    /// A model file for `params` with `effects` (version 2 when there are
+    /// any, else version 1).
+    pub fn with_effects(params: Params, effects: Effects, fit: Option<FitSummary>) -> ModelFile {
         ModelFile {
             format: FORMAT.to_string(),
-            version: VERSION,
+            version: if no_effects(&effects) {
+                VERSION
+            } else {
+                VERSION_EFFECTS
+            },
             params,
+            effects,
             fit,
         }
     }
@@ -76,7 +96,9 @@ impl ModelFile {
 pub fn load(path: &Path) -> Result<Coeffs> {
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let params = if bytes.starts_with(&blob::BLOB_MAGIC) {
-        blob::decode_params(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+        blob::decode_model_params(&bytes)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+            .0
     } else {
         let m: ModelFile = serde_json::from_slice(&bytes).map_err(|e| {
             anyhow::anyhow!(
@@ -86,9 +108,9 @@ pub fn load(path: &Path) -> Result<Coeffs> {
                 e.column()
             )
         })?;
-        if m.format != FORMAT || m.version != VERSION {
+        if m.format != FORMAT || !(m.version == VERSION || m.version == VERSION_EFFECTS) {
             bail!(
-                "{}: format `{}` version {} (expected `{FORMAT}` version {VERSION})",
+                "{}: format `{}` version {} (expected `{FORMAT}` version {VERSION} or {VERSION_EFFECTS})",
                 path.display(),
                 m.format,
                 m.version
@@ -143,6 +165,113 @@ pub fn rust_source(params: &Params, origin: &str) -> String {
     )
 }
 
+fn no_effects(e: &Effects) -> bool {
+    *e == Effects::NONE
+}
+
+/// The coefficient blob of a model: version 1 for the paper's model, so
+/// that firmware built before version 2 still reads it, version 2 with its
+/// effects otherwise.
+pub fn blob_bytes(params: &Params, effects: &Effects) -> Vec<u8> {
+    if no_effects(effects) {
+        blob::encode(params).to_vec()
+    } else {
+        blob::encode_v2(params, effects).to_vec()
+    }
+}
+
+/// [`rust_source`] plus, for a model with effects, a constant
+/// `EFFECTS: pam_core::Effects` (each effect `Some` with its parameters,
+/// or `None`).
+pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str) -> String {
+    let mut src = rust_source(params, origin);
+    if no_effects(effects) {
+        return src;
+    }
+    let f = f32_literal;
+    let opt = |v: Option<String>| v.map_or("None".to_string(), |s| format!("Some({s})"));
+    let memory = opt(effects.memory.map(|m| {
+        format!(
+            "pam_core::effects::NonLocalMemory {{\n        shape: {},\n        merge_span: {},\n    }}",
+            f(m.shape),
+            f(m.merge_span)
+        )
+    }));
+    let rate = opt(effects.rate.map(|r| {
+        format!(
+            "pam_core::effects::RateDependence {{\n        scale_at_rest: {},\n        scale_per_mpa_per_s: {},\n        exponent: {},\n        filter_time_s: {},\n    }}",
+            f(r.scale_at_rest),
+            f(r.scale_per_mpa_per_s),
+            f(r.exponent),
+            f(r.filter_time_s)
+        )
+    }));
+    let creep = opt(effects.creep.map(|c| {
+        format!(
+            "pam_core::effects::Creep {{\n        gain: {},\n        time_constant_s: {},\n    }}",
+            f(c.gain),
+            f(c.time_constant_s)
+        )
+    }));
+    let width = opt(effects.width.map(|w| {
+        format!(
+            "pam_core::effects::LoadDependentWidth {{\n        scale_at_min_load: {},\n        scale_per_step: {},\n    }}",
+            f(w.scale_at_min_load),
+            f(w.scale_per_step)
+        )
+    }));
+    src.push_str(&format!(
+        "\n/// The effects of the model beyond the paper's, identified with it.\n\
+         pub const EFFECTS: pam_core::Effects = pam_core::Effects {{\n    \
+         memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n}};\n"
+    ));
+    src
+}
+
+/// `{:?}` of an `f32` (the shortest text that reads back to the same value)
+/// with a decimal point.
+fn f32_literal(v: f32) -> String {
+    let s = format!("{v:?}");
+    if s.contains('.') || s.contains('e') {
+        s
+    } else {
+        format!("{s}.0")
+    }
+}
+
+/// Write a model's three files into `dir`: `model.json` ([`ModelFile`]),
+/// `model.blob` ([`blob_bytes`]) and `model_params.rs`
+/// ([`rust_source_with_effects`]), each atomically (no half-written file).
+/// Refuses a model that does not validate (`Coeffs::new`,
+/// `Effects::validate`). Returns the paths written.
+pub fn write_model_files(
+    dir: &Path,
+    params: &Params,
+    effects: &Effects,
+    fit: Option<FitSummary>,
+    origin: &str,
+) -> Result<Vec<std::path::PathBuf>> {
+    Coeffs::new(*params).map_err(|e| anyhow::anyhow!("invalid model: {e}"))?;
+    effects
+        .validate()
+        .map_err(|e| anyhow::anyhow!("invalid effects: {e}"))?;
+    let json = dir.join("model.json");
+    crate::atomic::write_bytes(
+        &json,
+        ModelFile::with_effects(*params, *effects, fit)
+            .to_json()
+            .as_bytes(),
+    )?;
+    let b = dir.join("model.blob");
+    crate::atomic::write_bytes(&b, &blob_bytes(params, effects))?;
+    let rs = dir.join("model_params.rs");
+    crate::atomic::write_bytes(
+        &rs,
+        rust_source_with_effects(params, effects, origin).as_bytes(),
+    )?;
+    Ok(vec![json, b, rs])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -180,5 +309,83 @@ mod tests {
         assert!(src.contains("root_contraction: 0.0151208835,"), "{src}");
         assert!(src.contains("max_pressure_mpa: 0.50096667,"), "{src}");
         assert!(src.contains("min_load_n: 100.0,"), "{src}");
+    }
+
+    fn memory_model() -> Effects {
+        Effects {
+            memory: Some(pam_core::effects::NonLocalMemory {
+                shape: 1.5,
+                merge_span: 0.11,
+            }),
+            ..Effects::NONE
+        }
+    }
+
+    #[test]
+    fn a_model_with_effects_writes_v2_json_blob_and_constants() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = memory_model();
+        let written = write_model_files(dir.path(), &Params::DEFAULT, &e, None, "test").unwrap();
+        assert_eq!(written.len(), 3);
+        // JSON: version 2 with the effects, read back by serde and by `load`.
+        let text = std::fs::read_to_string(dir.path().join("model.json")).unwrap();
+        let m: ModelFile = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            (m.version, m.effects, m.params),
+            (VERSION_EFFECTS, e, Params::DEFAULT)
+        );
+        assert_eq!(
+            load(&dir.path().join("model.json")).unwrap().params(),
+            &Params::DEFAULT
+        );
+        // Blob: version 2 with the memory, as the firmware decodes it.
+        let bytes = std::fs::read(dir.path().join("model.blob")).unwrap();
+        assert_eq!(bytes.len(), blob::BLOB_V2_LEN);
+        let (c, back) = blob::decode_model(&bytes).unwrap();
+        assert_eq!((c.params(), back), (&Params::DEFAULT, e));
+        assert_eq!(
+            load(&dir.path().join("model.blob")).unwrap().params(),
+            &Params::DEFAULT
+        );
+        // Constants.
+        let src = std::fs::read_to_string(dir.path().join("model_params.rs")).unwrap();
+        assert!(
+            src.contains("pub const EFFECTS: pam_core::Effects"),
+            "{src}"
+        );
+        assert!(
+            src.contains("shape: 1.5,") && src.contains("merge_span: 0.11,"),
+            "{src}"
+        );
+        assert!(src.contains("rate: None,"), "{src}");
+    }
+
+    #[test]
+    fn the_paper_model_still_writes_version_1() {
+        let dir = tempfile::tempdir().unwrap();
+        write_model_files(dir.path(), &Params::DEFAULT, &Effects::NONE, None, "test").unwrap();
+        let bytes = std::fs::read(dir.path().join("model.blob")).unwrap();
+        assert_eq!(bytes, blob::encode(&Params::DEFAULT).to_vec());
+        let text = std::fs::read_to_string(dir.path().join("model.json")).unwrap();
+        assert!(
+            text.contains("\"version\": 1,") && !text.contains("effects"),
+            "{text}"
+        );
+        let src = std::fs::read_to_string(dir.path().join("model_params.rs")).unwrap();
+        assert!(!src.contains("EFFECTS"), "{src}");
+    }
+
+    #[test]
+    fn invalid_effects_are_refused_and_nothing_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let bad = Effects {
+            memory: Some(pam_core::effects::NonLocalMemory {
+                shape: f32::NAN,
+                merge_span: 1.0,
+            }),
+            ..Effects::NONE
+        };
+        assert!(write_model_files(dir.path(), &Params::DEFAULT, &bad, None, "t").is_err());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 }

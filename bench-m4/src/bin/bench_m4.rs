@@ -16,14 +16,14 @@ use core::hint::black_box;
 use core::mem::size_of;
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use bench_m4::identified::{MEMORY_SHAPE, PAM_PARAMS, PI16, PREISACH16};
-use bench_m4::{PiTable, PrandtlIshlinskii, Preisach, PreisachTable};
+use bench_m4::identified::{GPI4, MEMORY_SHAPE, PAM_PARAMS, PI16, PREISACH16};
+use bench_m4::{GeneralizedPi, GpiTable, PiTable, PrandtlIshlinskii, Preisach, PreisachTable};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use firmware::controller::{Controller, ControllerConfig, Io};
+use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, Step};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
 use firmware::plant::{SimBus, SimContraction, SimLoad, SimPressure, SimPwm};
-use pam_core::effects::{Effects, NonLocalMemory};
+use pam_core::effects::{Effects, NonLocalMemory, ReversalStack};
 use pam_core::Simulator;
 use pam_core::{Branch, Coeffs, LoadModel, Tracker, TrackerConfig};
 
@@ -64,13 +64,17 @@ fn group<T: Copy, R>(name: &str, inputs: &[T], mut f: impl FnMut(T) -> R) {
 fn fail(why: &str) -> ! {
     hprintln!("{}", why);
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 // ---- the measured functions: one symbol each ----
 
 type Pi16 = PrandtlIshlinskii<16>;
 type Pi16Table = PiTable<16, 6>;
+type Gpi4 = GeneralizedPi<4>;
+type Gpi4Table = GpiTable<4, 6>;
 type Preisach16 = Preisach<16>;
 type Preisach16Table = PreisachTable<16, 6>;
 type SimIo<'a> =
@@ -84,26 +88,26 @@ fn bench_empty(x: f32) -> f32 {
 
 #[no_mangle]
 #[inline(never)]
-fn bench_forward_contraction(m: &LoadModel, x: f32) -> f32 {
-    m.pressure_mpa(x, Branch::Contraction)
+fn bench_forward_contraction(m: &LoadModel, x: f32, br: Branch) -> f32 {
+    m.pressure_mpa(x, br)
 }
 
 #[no_mangle]
 #[inline(never)]
-fn bench_forward_expansion(m: &LoadModel, x: f32) -> f32 {
-    m.pressure_mpa(x, Branch::Expansion)
+fn bench_forward_expansion(m: &LoadModel, x: f32, br: Branch) -> f32 {
+    m.pressure_mpa(x, br)
 }
 
 #[no_mangle]
 #[inline(never)]
-fn bench_inverse_contraction(m: &LoadModel, p: f32) -> f32 {
-    m.contraction(p, Branch::Contraction)
+fn bench_inverse_contraction(m: &LoadModel, p: f32, br: Branch) -> f32 {
+    m.contraction(p, br)
 }
 
 #[no_mangle]
 #[inline(never)]
-fn bench_inverse_expansion(m: &LoadModel, p: f32) -> f32 {
-    m.contraction(p, Branch::Expansion)
+fn bench_inverse_expansion(m: &LoadModel, p: f32, br: Branch) -> f32 {
+    m.contraction(p, br)
 }
 
 #[no_mangle]
@@ -140,6 +144,44 @@ fn bench_pi16_step(m: &mut Pi16, t: &Pi16Table, p: f32, load_n: f32) -> f32 {
 
 #[no_mangle]
 #[inline(never)]
+fn bench_gpi4_step(m: &mut Gpi4, t: &Gpi4Table, p: f32, load_n: f32) -> f32 {
+    m.step(t, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_tracker_load_switch(t: &mut Tracker, c: &Coeffs, drive: f32, load_n: f32) -> bool {
+    t.update(c, drive, load_n).load_switch.is_some()
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_memory_wipe_out(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) -> f32 {
+    s.step(t_s, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_memory_inverse(
+    s: &mut ReversalStack<8>,
+    mem: &NonLocalMemory,
+    m: &LoadModel,
+    x: f32,
+    br: Branch,
+) -> f32 {
+    s.inverse_pressure_mpa(mem, m, x, br, 1.0)
+}
+
+/// The controller over the representative run ([`run_controller`]), one
+/// symbol for every feedforward (chosen at run time in the configuration).
+#[no_mangle]
+#[inline(never)]
+fn bench_controller_run(c: &mut Controller, io: &mut SimIo<'_>, x_ref: f32) -> Step {
+    c.step(io, x_ref)
+}
+
+#[no_mangle]
+#[inline(never)]
 fn bench_preisach16_step(m: &mut Preisach16, t: &Preisach16Table, p: f32, load_n: f32) -> f32 {
     m.step(t, p, load_n)
 }
@@ -148,6 +190,93 @@ fn bench_preisach16_step(m: &mut Preisach16, t: &Preisach16Table, p: f32, load_n
 #[inline(never)]
 fn bench_controller_step(c: &mut Controller, io: &mut SimIo<'_>, x_ref: f32) -> f32 {
     c.step(io, x_ref).pressure_cmd_mpa
+}
+
+/// Set-point turning points of the representative controller run
+/// (contraction): reversals, nested minor loops and their wipe-outs.
+const RUN_TURNS: [f32; 9] = [0.06, 0.14, 0.10, 0.13, 0.08, 0.15, 0.09, 0.12, 0.07];
+/// Set-point speed, contraction per period (0.2 per second at 1 kHz).
+const RUN_SPEED: f32 = 2e-4;
+/// Load schedule of the run: from period, load (N). Two load switches.
+const RUN_LOADS: [(usize, f32); 3] = [(0, 200.0), (600, 450.0), (1400, 300.0)];
+/// Periods of the run (the set-point's path length over its speed).
+const RUN_LEN: usize = 2050;
+/// Step classes in the run.
+const REVERSAL: u8 = 1;
+const LOAD_SWITCH: u8 = 2;
+
+/// The run's set-point at each period.
+fn run_setpoints() -> [f32; RUN_LEN] {
+    let mut out = [0.0f32; RUN_LEN];
+    let mut x = RUN_TURNS[0];
+    let mut next = 1;
+    for v in out.iter_mut() {
+        if let Some(&target) = RUN_TURNS.get(next) {
+            let d = target - x;
+            if d.abs() <= RUN_SPEED {
+                x = target;
+                next += 1;
+            } else {
+                x += RUN_SPEED * d.signum();
+            }
+        }
+        *v = x;
+    }
+    out
+}
+
+fn run_load(k: usize) -> f32 {
+    let mut load = RUN_LOADS[0].1;
+    for &(from, l) in &RUN_LOADS {
+        if k >= from {
+            load = l;
+        }
+    }
+    // ±0.2 N of load-cell noise (a frozen reading would be a stuck sensor).
+    load + if k.is_multiple_of(2) { 0.2 } else { -0.2 }
+}
+
+/// One pass of the representative run on a fresh copy of `base`: a plant
+/// that follows the model (pressure lags the command by a first-order lag
+/// of 3 periods, contraction is the active model's at that pressure). With
+/// `select`, the steps whose class (from a previous pass) matches are
+/// measured; the classes of this pass are written to `classes`.
+fn run_controller(
+    base: &Controller,
+    bus: &SimBus,
+    io: &mut SimIo<'_>,
+    select: Option<(&[u8; RUN_LEN], u8)>,
+    classes: &mut [u8; RUN_LEN],
+) {
+    let mut c = base.clone();
+    let cal = PressureCalibration::ADC12_0_1MPA;
+    let refs = run_setpoints();
+    let mut p = 0.15f32;
+    let mut x = c.tracker().model().contraction(p, Branch::Contraction);
+    for (k, (&x_ref, class)) in refs.iter().zip(classes.iter_mut()).enumerate() {
+        bus.pressure_counts.set(cal.to_counts(p));
+        bus.contraction.set(x);
+        bus.load_n.set(run_load(k));
+        let measured = match select {
+            Some((sel, mask)) => sel
+                .get(k)
+                .is_some_and(|&s| s & mask != 0 || mask == u8::MAX),
+            None => false,
+        };
+        let step = if measured {
+            measure(|| bench_controller_run(&mut c, black_box(&mut *io), black_box(x_ref)))
+        } else {
+            bench_controller_run(&mut c, &mut *io, x_ref)
+        };
+        if step.fault.is_some() {
+            fail("controller faulted in the run");
+        }
+        *class = u8::from(step.tracker.branch_switch.is_some()) * REVERSAL
+            + u8::from(step.tracker.load_switch.is_some() || !c.tracker().inverse_ready())
+                * LOAD_SWITCH;
+        p += (step.pressure_cmd_mpa - p) / 3.0;
+        x = c.tracker().model().contraction(p, c.tracker().branch());
+    }
 }
 
 #[entry]
@@ -180,16 +309,16 @@ fn main() -> ! {
 
     group("empty", &[0.0f32; 8], bench_empty);
     group("forward_contraction", &stroke, |x| {
-        bench_forward_contraction(&model, x)
+        bench_forward_contraction(&model, x, black_box(Branch::Contraction))
     });
     group("forward_expansion", &stroke, |x| {
-        bench_forward_expansion(&model, x)
+        bench_forward_expansion(&model, x, black_box(Branch::Expansion))
     });
     group("inverse_contraction", &pressures, |p| {
-        bench_inverse_contraction(&model, p)
+        bench_inverse_contraction(&model, p, black_box(Branch::Contraction))
     });
     group("inverse_expansion", &pressures, |p| {
-        bench_inverse_expansion(&model, p)
+        bench_inverse_expansion(&model, p, black_box(Branch::Expansion))
     });
 
     let new_tracker = || {
@@ -232,13 +361,8 @@ fn main() -> ! {
     let minor: [(f32, f32); 16] =
         core::array::from_fn(|k| (0.02 * (k + 1) as f32, 0.162 + 0.008 * k as f32));
     let new_sim = |effects| {
-        Simulator::<16>::new(
-            coeffs.clone(),
-            effects,
-            TrackerConfig::DEFAULT_PRESSURE,
-            200.0,
-        )
-        .unwrap_or_else(|_| fail("simulator refused"))
+        Simulator::<16>::new(coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, 200.0)
+            .unwrap_or_else(|_| fail("simulator refused"))
     };
     let mut sim = new_sim(Effects::NONE);
     let t0 = warm(&mut sim);
@@ -258,11 +382,91 @@ fn main() -> ! {
         bench_nonlocal_memory_step(&mut sim_mem, t0 + dt, p, 200.0)
     });
 
+    // A wipe-out: from the same minor loop (turning points 0.3 and
+    // 0.15 MPa), one sample past 0.3 MPa closes it.
+    let mut warm_mem = new_sim(memory);
+    let t0 = warm(&mut warm_mem);
+    let past: [f32; 8] = core::array::from_fn(|i| 0.301 + 0.004 * i as f32);
+    hprintln!("group memory_wipe_out {}", past.len());
+    for &p in &past {
+        let mut s = warm_mem.clone();
+        black_box(measure(|| {
+            bench_memory_wipe_out(&mut s, black_box(t0 + 0.02), black_box(p), black_box(200.0))
+        }));
+        if !s.reversals().is_empty() {
+            fail("no wipe-out");
+        }
+    }
+    // The memory's inverse (the memory feedforward's per-step work) on
+    // that minor loop.
+    let mut stack = ReversalStack::<8>::default();
+    for &r in warm_mem.reversals() {
+        stack.push(r);
+    }
+    let mem_params = NonLocalMemory::with_shape(MEMORY_SHAPE);
+    let xs: [f32; 16] = core::array::from_fn(|i| 0.03 + 0.012 * i as f32);
+    // First call on a loop (its ends: two branch inverses), then cached.
+    hprintln!("group memory_inverse_new_loop {}", xs.len());
+    for &x in &xs {
+        let mut st = stack;
+        black_box(measure(|| {
+            bench_memory_inverse(
+                &mut st,
+                &mem_params,
+                &model,
+                black_box(x),
+                black_box(Branch::Contraction),
+            )
+        }));
+    }
+    bench_memory_inverse(&mut stack, &mem_params, &model, 0.1, Branch::Contraction);
+    group("memory_inverse", &xs, |x| {
+        bench_memory_inverse(
+            &mut stack,
+            &mem_params,
+            &model,
+            x,
+            black_box(Branch::Contraction),
+        )
+    });
+
+    // A load switch of the tracker with the firmware's build budget: every
+    // update from the load step until the new model's tables are complete.
+    let mut base = new_tracker();
+    base.set_build_budget(firmware::controller::TABLE_BUILD_UNITS_PER_STEP);
+    for _ in 0..10 {
+        base.update(&coeffs, 0.1, 200.0);
+    }
+    let mut dry = base.clone();
+    let mut n = 0;
+    loop {
+        n += 1;
+        dry.update(&coeffs, 0.1, 450.0);
+        if dry.load_n() == 450.0 && dry.inverse_ready() {
+            break;
+        }
+        if n > 1000 {
+            fail("the load switch never completed");
+        }
+    }
+    hprintln!("group tracker_load_switch {}", n);
+    let mut t = base.clone();
+    for _ in 0..n {
+        black_box(measure(|| {
+            bench_tracker_load_switch(&mut t, &coeffs, black_box(0.1), black_box(450.0))
+        }));
+    }
+
     // Baselines on the same triangle as the tracker, at a steady load.
     let pi_table = black_box(&PI16);
     let mut pi = Pi16::new(pi_table, 200.0, 0.0);
     group("pi16_step", &drive, |p| {
         bench_pi16_step(&mut pi, pi_table, p, 200.0)
+    });
+    let gpi_table = black_box(&GPI4);
+    let mut gpi = Gpi4::new(gpi_table, 200.0, 0.0);
+    group("gpi4_step", &drive, |p| {
+        bench_gpi4_step(&mut gpi, gpi_table, p, 200.0)
     });
     let pr_table = black_box(&PREISACH16);
     let mut pr = Preisach16::new(pr_table, 200.0, 0.0);
@@ -272,7 +476,7 @@ fn main() -> ! {
 
     // The firmware's controller with the in-memory simulated sensors and
     // PWM: set-point ramping up then down, sensors a little behind.
-    let Ok(mut ctl) = Controller::new(coeffs.clone(), ControllerConfig::DEFAULT, 200.0) else {
+    let Ok(mut ctl) = Controller::new(coeffs, ControllerConfig::DEFAULT, 200.0) else {
         fail("controller refused");
     };
     let bus = SimBus::new();
@@ -314,6 +518,41 @@ fn main() -> ! {
         }
     }
 
+    // The representative run with each feedforward (chosen at run time):
+    // every step, the reversal steps, and the load-switch steps (the switch
+    // and the table build after it).
+    let feedforwards = [
+        ("off", Feedforward::Off),
+        ("constraint", Feedforward::Constraint),
+        ("hysteresis", Feedforward::Hysteresis),
+        (
+            "memory",
+            Feedforward::HysteresisMemory(NonLocalMemory::with_shape(MEMORY_SHAPE)),
+        ),
+    ];
+    for (name, ff) in feedforwards {
+        let mut cfg = ControllerConfig::DEFAULT;
+        cfg.feedforward = black_box(ff);
+        let Ok(base) = Controller::new(coeffs, cfg, 200.0) else {
+            fail("controller refused");
+        };
+        let mut classes = [0u8; RUN_LEN];
+        run_controller(&base, &bus, &mut io, None, &mut classes);
+        let sel = classes;
+        for (what, mask) in [
+            ("run", u8::MAX),
+            ("reversal", REVERSAL),
+            ("load_switch", LOAD_SWITCH),
+        ] {
+            let n = sel
+                .iter()
+                .filter(|&&c| mask == u8::MAX || c & mask != 0)
+                .count();
+            hprintln!("group ctl_{}_{} {}", what, name, n);
+            run_controller(&base, &bus, &mut io, Some((&sel, mask)), &mut classes);
+        }
+    }
+
     hprintln!(
         "ram paper_model_step {}",
         size_of::<Coeffs>() + size_of::<Tracker>()
@@ -321,17 +560,23 @@ fn main() -> ! {
     hprintln!("ram nonlocal_memory_step {}", size_of::<Simulator<16>>());
     hprintln!("ram pi16_step {}", size_of::<Pi16>());
     hprintln!("table pi16_step {}", size_of::<Pi16Table>());
+    hprintln!("ram gpi4_step {}", size_of::<Gpi4>());
+    hprintln!("table gpi4_step {}", size_of::<Gpi4Table>());
     hprintln!("ram preisach16_step {}", size_of::<Preisach16>());
     hprintln!("table preisach16_step {}", size_of::<Preisach16Table>());
     hprintln!("ram controller_step {}", size_of::<Controller>());
 
     hprintln!("done");
     debug::exit(debug::EXIT_SUCCESS);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }

@@ -39,7 +39,10 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use bench_m4::{PiCoeffs, PiTable, PrandtlIshlinskii, Preisach, PreisachCoeffs, PreisachTable};
+use bench_m4::{
+    GeneralizedPi, GpiCoeffs, GpiTable, PiCoeffs, PiTable, PrandtlIshlinskii, Preisach,
+    PreisachCoeffs, PreisachTable,
+};
 use nalgebra::{DMatrix, DVector};
 use pam_core::effects::{Effects, NonLocalMemory};
 use pam_core::Simulator;
@@ -58,6 +61,11 @@ const MIN_LOAD_N: f32 = 100.0;
 const LOAD_STEP_N: f32 = 100.0;
 /// Largest play threshold, MPa (half the 0–0.5 MPa input range).
 const PI_MAX_THRESHOLD_MPA: f32 = 0.25;
+/// Play operators of the generalised PI baseline.
+const GPI_N: usize = 4;
+/// Candidate largest play thresholds of the generalised PI, MPa (chosen on
+/// the training samples; thresholds `r_i = i·r_max/GPI_N`).
+const GPI_MAX_THRESHOLDS_MPA: [f32; 6] = [0.04, 0.06, 0.08, 0.12, 0.16, 0.25];
 /// Preisach grid: lowest switch-down threshold and spacing, MPa.
 const PREISACH_LO_MPA: f32 = 0.01;
 const PREISACH_STEP_MPA: f32 = 0.03;
@@ -200,6 +208,69 @@ fn identify_pi(samples: &[Sample], heldout: &[bool]) -> PiTable<N, L> {
         };
     }
     table
+}
+
+fn identify_gpi(
+    samples: &[Sample],
+    heldout: &[bool],
+    max_threshold_mpa: f32,
+) -> GpiTable<GPI_N, L> {
+    let thresholds_mpa: [f32; GPI_N] =
+        core::array::from_fn(|i| (i + 1) as f32 * max_threshold_mpa / GPI_N as f32);
+    let zero = GpiCoeffs {
+        bias: 0.0,
+        cubic: [0.0; 3],
+        weights: [0.0; GPI_N],
+    };
+    let mut table = GpiTable {
+        thresholds_mpa,
+        min_load_n: MIN_LOAD_N,
+        load_step_n: LOAD_STEP_N,
+        grid: [zero; L],
+    };
+    let first = &samples[0];
+    let mut m = GeneralizedPi::new(&table, first.load_n as f32, first.pressure_mpa as f32);
+    let mut ne = Normal::new(GPI_N + 4);
+    let mut row = vec![0.0; GPI_N + 4];
+    for (s, &h) in samples.iter().zip(heldout) {
+        m.update_load(&table, s.load_n as f32);
+        m.update_state(s.pressure_mpa as f32);
+        if h {
+            continue;
+        }
+        let p = f64::from(m.last_mpa());
+        row[0] = 1.0;
+        row[1] = p;
+        row[2] = p * p;
+        row[3] = p * p * p;
+        for (r, &z) in row[4..].iter_mut().zip(m.plays()) {
+            *r = f64::from(z);
+        }
+        ne.add(grid_index(m.load_n()), &row, s.contraction);
+    }
+    for g in 0..L {
+        let x = ne.solve(g);
+        table.grid[g] = GpiCoeffs {
+            bias: x[0] as f32,
+            cubic: [x[1] as f32, x[2] as f32, x[3] as f32],
+            weights: core::array::from_fn(|i| x[i + 4] as f32),
+        };
+    }
+    table
+}
+
+fn gpi_errors(table: &GpiTable<GPI_N, L>, samples: &[Sample], heldout: &[bool]) -> Errors {
+    let mut e = Errors::default();
+    let mut m = GeneralizedPi::new(
+        table,
+        samples[0].load_n as f32,
+        samples[0].pressure_mpa as f32,
+    );
+    for (s, &h) in samples.iter().zip(heldout) {
+        let x = m.step(table, s.pressure_mpa as f32, s.load_n as f32);
+        e.add(h, f64::from(x) - s.contraction);
+    }
+    e
 }
 
 fn identify_preisach(samples: &[Sample], heldout: &[bool]) -> PreisachTable<N, L> {
@@ -379,6 +450,15 @@ fn main() {
         let x = m.step(&pi, s.pressure_mpa as f32, s.load_n as f32);
         pi_err.add(h, f64::from(x) - s.contraction);
     }
+    let (gpi, gpi_err) = GPI_MAX_THRESHOLDS_MPA
+        .iter()
+        .map(|&r| {
+            let t = identify_gpi(&samples, &heldout, r);
+            let e = gpi_errors(&t, &samples, &heldout);
+            (t, e)
+        })
+        .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
+        .expect("thresholds");
     let pr = identify_preisach(&samples, &heldout);
     let mut pr_err = Errors::default();
     let mut m = Preisach::new(
@@ -398,7 +478,7 @@ fn main() {
          //! (bench-m4/src/bin/identify.rs): the models identified on\n\
          //! `host_sim::characterisation_run(1)`, training cycles only. Do not edit.\n\
          #![allow(clippy::all, clippy::pedantic)]\n\n\
-         use crate::{PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};\n\
+         use crate::{GpiCoeffs, GpiTable, PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};\n\
          use pam_core::{CriticalPoints, Params, Point};\n\n",
     );
     let _ = writeln!(
@@ -425,6 +505,23 @@ fn main() {
             "        PiCoeffs {{\n            bias: {},\n            linear: {},\n            weights: {},\n        }},",
             f(c.bias),
             f(c.linear),
+            arr(&c.weights)
+        );
+    }
+    src.push_str("    ],\n};\n\n");
+    let _ = writeln!(
+        src,
+        "/// Generalised Prandtl–Ishlinskii, {GPI_N} play operators and a cubic input nonlinearity, at {L} loads.\npub const GPI4: GpiTable<{GPI_N}, {L}> = GpiTable {{\n    thresholds_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
+        arr(&gpi.thresholds_mpa),
+        f(gpi.min_load_n),
+        f(gpi.load_step_n)
+    );
+    for c in &gpi.grid {
+        let _ = writeln!(
+            src,
+            "        GpiCoeffs {{\n            bias: {},\n            cubic: {},\n            weights: {},\n        }},",
+            f(c.bias),
+            arr(&c.cubic),
             arr(&c.weights)
         );
     }
@@ -471,6 +568,16 @@ fn main() {
             "Prandtl–Ishlinskii, 16 play operators",
             format!("least squares per load; {} coefficients", L * (N + 2)),
             pi_err,
+        ),
+        (
+            "gpi4",
+            "generalised Prandtl–Ishlinskii, 4 plays + cubic input",
+            format!(
+                "least squares per load; {} coefficients; largest threshold {} MPa chosen on the training cycles",
+                L * (GPI_N + 4),
+                gpi.thresholds_mpa[GPI_N - 1]
+            ),
+            gpi_err,
         ),
         (
             "preisach16",

@@ -34,7 +34,6 @@ use firmware::plant::StaticPwm;
 use firmware::plant::{SimBus, SimPwm};
 use firmware::scenario::{self, Report};
 use firmware::Controller;
-use pam_core::blob::BLOB_LEN;
 #[cfg(not(feature = "qemu"))]
 use panic_probe as _;
 
@@ -189,12 +188,31 @@ fn main() -> ! {
     let _ = valve.set_safe(safe);
 
     let blob = firmware::coeffs_blob();
+    let ff = match firmware::controller::model_from_blob(blob, Feedforward::Hysteresis) {
+        Ok((_, ff)) => ff,
+        Err(e) => {
+            log!(error, "boot: coefficient blob refused: {}", e);
+            let _ = valve.set_safe(SafeState::Exhaust);
+            finish(false)
+        }
+    };
     if let Err(e) = Controller::from_blob(blob, ControllerConfig::DEFAULT, scenario::LOAD_N) {
         log!(error, "boot: coefficient blob refused: {}", e);
         let _ = valve.set_safe(SafeState::Exhaust);
         finish(false)
     }
-    log!(info, "boot: coefficient blob accepted ({} bytes)", BLOB_LEN);
+    let with_memory = matches!(ff, Feedforward::HysteresisMemory(_));
+    log!(
+        info,
+        "boot: coefficient blob accepted ({} bytes, version {}{})",
+        blob.len(),
+        blob.get(4).copied().unwrap_or(0),
+        if with_memory {
+            ", non-local memory"
+        } else {
+            ""
+        }
+    );
     #[cfg(feature = "qemu")]
     if cfg!(feature = "qemu-panic") {
         panic_demo(blob)
@@ -214,7 +232,14 @@ fn main() -> ! {
             finish(false)
         }
     };
-    report("hysteresis feedforward", &result);
+    report(
+        if with_memory {
+            "hysteresis feedforward with the blob's non-local memory"
+        } else {
+            "hysteresis feedforward"
+        },
+        &result,
+    );
     // The same run without hysteresis compensation, for comparison only.
     if let Ok(r) = run(Feedforward::Constraint, false) {
         report("constraint-model feedforward", &r);

@@ -22,10 +22,9 @@ use pam_core::{Branch, LoadModel};
 /// remembers (nested minor loops); older ones are dropped.
 pub const MEMORY_DEPTH: usize = 8;
 
-/// Bisection steps of the minor-loop feedforward's inverse: `Pmax`
-/// (0.5 MPa) over 2²⁰ is 5·10⁻⁷ MPa, far below the 2·10⁻⁴ MPa of
-/// pam-core's inverse table (`pam_core::load_model::INVERSE_TOLERANCE_MPA`).
-pub const MEMORY_INVERSE_STEPS: usize = 20;
+/// Bisection steps of the minor-loop feedforward's inverse (pam-core's
+/// [`ReversalStack::inverse_pressure_mpa`], in branch contraction).
+pub use pam_core::effects::memory::MEMORY_INVERSE_STEPS;
 
 /// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
 /// with bad bounds).
@@ -71,6 +70,13 @@ impl Law {
     /// The turning points belong to the old load's loop.
     pub fn load_switched(&mut self) {
         self.memory.clear();
+    }
+
+    /// The memory feedforward computed a minor loop's ends on this period
+    /// (two branch inverses, table-free and slower while the tracker builds
+    /// a new load's tables) instead of using its cached loop.
+    pub fn rebuilt_loop(&self) -> bool {
+        self.memory.rebuilt_loop
     }
 
     /// One period on checked (finite, in range) readings. `ki_dt` is
@@ -144,12 +150,21 @@ impl Law {
 struct MemoryState {
     stack: ReversalStack<MEMORY_DEPTH>,
     extreme: Option<Reversal>,
+    /// The memory with `extreme` pushed, kept while the set-point backs off
+    /// from it (so its minor loop stays cached); valid while `trial_valid`.
+    trial: ReversalStack<MEMORY_DEPTH>,
+    trial_valid: bool,
+    /// The last feedforward computed a minor loop's ends (two branch
+    /// inverses) instead of using the cached loop.
+    rebuilt_loop: bool,
 }
 
 impl MemoryState {
     fn clear(&mut self) {
         self.stack.clear();
         self.extreme = None;
+        self.trial_valid = false;
+        self.rebuilt_loop = false;
     }
 
     /// The feedforward pressure that holds `x_ref` on the memory's curve for
@@ -174,6 +189,7 @@ impl MemoryState {
         branch: Branch,
         branch_switch: bool,
     ) -> f32 {
+        self.rebuilt_loop = false;
         if branch_switch {
             if let Some(r) = self.extreme.take() {
                 self.stack.push(r);
@@ -185,19 +201,37 @@ impl MemoryState {
                 Branch::Expansion => x_ref > e.contraction,
             };
             if backing_off {
-                let mut trial = self.stack;
-                trial.push(e);
-                return inverse_mpa(&trial, params, model, x_ref, branch.opposite());
+                if !self.trial_valid {
+                    self.trial = self.stack;
+                    self.trial.push(e);
+                    self.trial_valid = true;
+                }
+                self.rebuilt_loop = !self.trial.has_cached_loop();
+                return self.trial.inverse_pressure_mpa(
+                    params,
+                    model,
+                    x_ref,
+                    branch.opposite(),
+                    1.0,
+                );
             }
         }
+        // The memory moves on (wipe-out, new extreme): the trial is stale.
+        self.trial_valid = false;
+        let before = self.stack.points().len();
+        let cached = self.stack.has_cached_loop();
         let p_mpa = if self.stack.points().is_empty() {
             // No reversal remembered: `x(p)` is the branch inverse, whose
             // inverse is the forward model, eqs. (25)/(26).
             model.pressure_mpa(x_ref, branch)
         } else {
-            inverse_mpa(&self.stack, params, model, x_ref, branch)
+            self.stack
+                .inverse_pressure_mpa(params, model, x_ref, branch, 1.0)
         };
         self.stack.wipe_out(p_mpa, branch);
+        // A loop's ends were computed unless the cached loop served (a
+        // closed loop, popped here, was evaluated afresh).
+        self.rebuilt_loop = before > 0 && (!cached || self.stack.points().len() < before);
         // At or beyond the sweep's extreme: the turning point of the next reversal.
         self.extreme = Some(Reversal {
             pressure_mpa: p_mpa,
@@ -205,32 +239,4 @@ impl MemoryState {
         });
         p_mpa
     }
-}
-
-/// The pressure in `[0, Pmax]` at which the memory's curve `x(p)` for
-/// `branch` reaches `x_ref`: bisection of [`MEMORY_INVERSE_STEPS`] steps, each
-/// on a copy of `stack` (a candidate applies its own wiping-out, so a minor
-/// loop that closes within this step is inverted correctly).
-///
-/// Not inlined: it is called from two places, and its body inlines
-/// pam-core's table inverse and `powf` (flash budget).
-#[inline(never)]
-fn inverse_mpa(
-    stack: &ReversalStack<MEMORY_DEPTH>,
-    params: &NonLocalMemory,
-    model: &LoadModel,
-    x_ref: f32,
-    branch: Branch,
-) -> f32 {
-    let (mut lo, mut hi) = (0.0f32, model.max_pressure_mpa());
-    for _ in 0..MEMORY_INVERSE_STEPS {
-        let mid = 0.5 * (lo + hi);
-        let mut trial = *stack;
-        if trial.contraction(params, model, mid, branch, 1.0) <= x_ref {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
 }

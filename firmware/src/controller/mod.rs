@@ -43,8 +43,10 @@
 //!
 //! # Work per step
 //! Three sensor reads, a fixed number of comparisons, one forward model
-//! evaluation and two inverse evaluations (the plausibility band) and, on
-//! a load switch of the tracker, one [`pam_core::LoadModel`] rebuild. No
+//! evaluation and two inverse evaluations (the plausibility band) and,
+//! after a load switch, at most [`TABLE_BUILD_UNITS_PER_STEP`] units of the
+//! new model's inverse-table build per step until it is complete (the new
+//! model's forward evaluation is active from the switch). No
 //! allocation, no loops over data, no panicking operation (no indexing by
 //! runtime values, no division by a runtime value other than in `f32`,
 //! which saturates to ±inf or NaN and is clamped).
@@ -65,6 +67,60 @@ use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, Valve};
 use law::Law;
 use monitor::Monitor;
 use pam_core::{Branch, Coeffs, Tracker, Update};
+
+/// Work units of a load switch's inverse-table build per step (one forward
+/// evaluation or one Newton step each, see [`Tracker::set_build_budget`]),
+/// done at the end of the step; none on a step whose memory feedforward
+/// computed a minor loop's ends.
+/// Chosen with bench-m4 so that the step's worst case stays under 2 000
+/// instructions; a complete build then takes at most
+/// `pam_core::load_model::BUILD_UNITS_MAX / 10` = 176 periods. The new
+/// load's forward model (the feedforward) is active from the switch; while
+/// its tables are built the model check is paused and the memory
+/// feedforward's branch inverse is pam-core's slower table-free one.
+pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 10;
+
+/// The coefficients of a blob (version 1 or 2, [`pam_core::blob`]) and the
+/// feedforward that runs its model, from the configured one:
+///
+/// * a model with non-local memory turns [`Feedforward::Hysteresis`] (and
+///   a hand-set [`Feedforward::HysteresisMemory`]) into
+///   `HysteresisMemory` with the blob's memory shape and merge span; the
+///   comparison modes [`Feedforward::Constraint`] and [`Feedforward::Off`]
+///   stay as configured;
+/// * a model with rate dependence, creep or a load-dependent width is
+///   refused ([`ConfigError::UnsupportedEffect`]): the controller would
+///   run a different model than the one identified.
+pub fn model_from_blob(
+    blob: &[u8],
+    feedforward: Feedforward,
+) -> Result<(Coeffs, Feedforward), ConfigError> {
+    let (params, effects) =
+        pam_core::blob::decode_model_params(blob).map_err(ConfigError::Coefficients)?;
+    // The effects this controller cannot run are refused before anything is
+    // validated; the memory is validated here (what `decode_model` checks,
+    // without linking the other effects' validation into the image).
+    if effects.rate.is_some() {
+        return Err(ConfigError::UnsupportedEffect("rate dependence"));
+    }
+    if effects.creep.is_some() {
+        return Err(ConfigError::UnsupportedEffect("creep"));
+    }
+    if effects.width.is_some() {
+        return Err(ConfigError::UnsupportedEffect("load-dependent width"));
+    }
+    if let Some(m) = effects.memory {
+        m.validate().map_err(ConfigError::Coefficients)?;
+    }
+    let coeffs = Coeffs::new(params).map_err(ConfigError::Coefficients)?;
+    let feedforward = match (effects.memory, feedforward) {
+        (Some(m), Feedforward::Hysteresis | Feedforward::HysteresisMemory(_)) => {
+            Feedforward::HysteresisMemory(m)
+        }
+        (_, ff) => ff,
+    };
+    Ok((coeffs, feedforward))
+}
 
 /// What one step did; the firmware logs `new_fault` and `recovered`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,8 +178,12 @@ impl Controller {
         initial_load_n: f32,
     ) -> Result<Controller, ConfigError> {
         config.validate()?;
-        let tracker = Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
-            .map_err(ConfigError::Tracker)?;
+        let mut tracker =
+            Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
+                .map_err(ConfigError::Tracker)?;
+        // A load switch's table build, spread over the periods that follow
+        // it: the step's worst case stays bounded (bench-m4 `load_switch`).
+        tracker.defer_build();
         Ok(Controller {
             monitor: Monitor::new(&config.safety, &coeffs, config.dt_s),
             ki_dt: config.ki_mpa_per_s * config.dt_s,
@@ -139,14 +199,23 @@ impl Controller {
 
     /// A controller from a coefficient blob in pam-core's format
     /// ([`pam_core::blob`]: magic, version, length, CRC-32, then the
-    /// parameters are validated). A blob that fails any check is refused.
+    /// parameters and effects are validated), with the feedforward the
+    /// blob's model asks for ([`model_from_blob`]). A blob that fails any
+    /// check, or whose model this controller cannot run, is refused.
     pub fn from_blob(
         blob: &[u8],
         config: ControllerConfig,
         initial_load_n: f32,
     ) -> Result<Controller, ConfigError> {
-        let coeffs = pam_core::blob::decode(blob).map_err(ConfigError::Coefficients)?;
-        Controller::new(coeffs, config, initial_load_n)
+        let (coeffs, feedforward) = model_from_blob(blob, config.feedforward)?;
+        Controller::new(
+            coeffs,
+            ControllerConfig {
+                feedforward,
+                ..config
+            },
+            initial_load_n,
+        )
     }
 
     /// The coefficients.
@@ -247,6 +316,24 @@ impl Controller {
     /// built in place.
     #[inline(always)]
     fn update_inline(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
+        let step = self.compute(sample, desired_contraction);
+        if !self.tracker.inverse_ready() {
+            // The new load's tables, after everything else of the period: a
+            // period whose memory feedforward computed a minor loop's ends
+            // (two table-free inverses) leaves the build to the next one.
+            let units = if self.law.rebuilt_loop() {
+                0
+            } else {
+                TABLE_BUILD_UNITS_PER_STEP
+            };
+            self.tracker.advance_build(units);
+        }
+        step
+    }
+
+    /// Everything of a period but the table build.
+    #[inline(always)]
+    fn compute(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
         self.period = self.period.wrapping_add(1);
         let mut step = Step {
             fault: None,
@@ -277,6 +364,11 @@ impl Controller {
             .update(&self.coeffs, desired_contraction, load_n);
         if step.tracker.load_switch.is_some() {
             self.law.load_switched();
+            self.monitor.load_switched();
+        } else if !self.tracker.inverse_ready() {
+            // The new load's inverse tables are still being built: the
+            // model check (two inverses) stays paused until they are, and
+            // for its settling time after.
             self.monitor.load_switched();
         }
         step.branch = self.tracker.branch();

@@ -816,7 +816,10 @@ fn the_model_check_pauses_while_a_load_step_settles() {
     assert!(x > heavy.contraction(p, Branch::Expansion) + s.implausible_contraction);
     let mut switched_at = None;
     let settle = (s.implausible_settle_s / cfg.dt_s) as u32;
-    for k in 0..(settle + u32::from(s.implausible_periods) + 10) {
+    // The check resumes after the new model's table build and the settling.
+    let build = pam_core::load_model::BUILD_UNITS_MAX
+        .div_ceil(usize::from(super::TABLE_BUILD_UNITS_PER_STEP)) as u32;
+    for k in 0..(build + settle + u32::from(s.implausible_periods) + 10) {
         let d = (k % 2) as f32 * 1e-4;
         let st = c.update(&good(p + d, x, 600.0 + d), 0.12);
         if st.tracker.load_switch.is_some() {

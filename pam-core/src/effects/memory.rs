@@ -57,6 +57,26 @@ use crate::math::clamp;
 
 use super::branch_contraction;
 
+/// Bisection steps of [`ReversalStack::inverse_pressure_mpa`] in branch
+/// contraction: a stroke below 1 over 2²⁴ is 6·10⁻⁸ of contraction, the
+/// resolution of an `f32` contraction near 0.1.
+pub const MEMORY_INVERSE_STEPS: usize = 24;
+
+/// The pressure on `branch` at branch contraction `x` with the ellipse
+/// offset scaled by `offset_scale` (eqs. 25/26; 1: the paper's model), in
+/// `[0, Pmax]`: the forward counterpart of [`branch_contraction`].
+fn branch_pressure_mpa(model: &LoadModel, x: f32, branch: Branch, offset_scale: f32) -> f32 {
+    if offset_scale == 1.0 {
+        return model.pressure_mpa(x, branch);
+    }
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+    clamp(
+        model.constraint_pressure_mpa(x) + k * model.offset_mpa(x),
+        0.0,
+        model.max_pressure_mpa(),
+    )
+}
+
 /// Parameters of the non-local memory.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -242,6 +262,13 @@ impl<const N: usize> ReversalStack<N> {
         self.segment = None;
     }
 
+    /// Whether the top minor loop is cached (then [`Self::contraction`] and
+    /// [`Self::inverse_pressure_mpa`] on it skip the two branch inverses of
+    /// its ends, as long as branch, model and offset scale stay the same).
+    pub fn has_cached_loop(&self) -> bool {
+        self.segment.is_some()
+    }
+
     /// Forget the cached minor loop (the [`Simulator`](crate::Simulator)
     /// calls this where the branch changes; its model and offset scale change
     /// only with a load switch, which clears the stack, or are compared).
@@ -301,52 +328,7 @@ impl<const N: usize> ReversalStack<N> {
                 return Some(s);
             }
         }
-        let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
-        let (b_t, d_t) = match target {
-            Some(t) => {
-                let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
-                (b_t, t.contraction - b_t)
-            }
-            // The first reversal's curve closes on the end of the major loop.
-            None => {
-                let end = match branch {
-                    Branch::Contraction => model.max_pressure_mpa(),
-                    Branch::Expansion => 0.0,
-                };
-                (branch_contraction(model, end, branch, offset_scale), 0.0)
-            }
-        };
-        let span = b_r - b_t;
-        let degenerate = !(span.abs() > 1e-6);
-        let inv_progress = if degenerate {
-            0.0
-        } else if span > 0.0 {
-            (1.0 / span).max(blend.inv_merge)
-        } else {
-            (1.0 / span).min(-blend.inv_merge)
-        };
-        let wipe_sign = match branch {
-            Branch::Contraction => 1.0,
-            Branch::Expansion => -1.0,
-        };
-        let s = Segment {
-            branch,
-            scale_bits,
-            load_bits,
-            max_contraction_bits,
-            merge_bits,
-            wipe_sign,
-            wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
-            b_r,
-            inv_progress,
-            d_t,
-            // A degenerate loop sits at the target's offset (s is 1 there).
-            d_rt: if degenerate {
-                0.0
-            } else {
-                (origin.contraction - b_r) - d_t
-            },
-        };
+        let s = Segment::new(blend, model, origin, target, branch, offset_scale);
         self.segment = Some(s);
         Some(s)
     }
@@ -370,6 +352,107 @@ impl<const N: usize> ReversalStack<N> {
             return x_branch;
         };
         seg.eval(blend, model, x_branch)
+    }
+
+    /// The inverse of [`Self::contraction`]: the pressure in `[0, Pmax]` at
+    /// which the memory's curve for `branch` reaches `contraction` (the
+    /// feedforward of a controller that follows the memory). The points are
+    /// not changed (only the cached minor loop); apply [`Self::wipe_out`]
+    /// with the result to move on.
+    ///
+    /// Minor loops that `contraction` lies beyond (past the contraction of
+    /// the point below the top, in the direction of `branch`) close first,
+    /// as [`Self::wipe_out`] closes them for a pressure past that point's.
+    /// On the remaining loop the curve is `x = B + d_t + (d_r − d_t)·w(s(B))`
+    /// in the branch contraction `B`, which is solved for `B` in closed form
+    /// (one square root; see `Segment::solve`), or where that finds no
+    /// candidate (a contraction beyond the curve's reach) by
+    /// [`MEMORY_INVERSE_STEPS`] bisection steps (no table inverse in them:
+    /// a few `f32` operations and one division each); the pressure is then
+    /// the forward model at `B`, eqs. (25)/(26). With no reversal left it is
+    /// the forward model at `contraction`. Assumes, as the wiping-out rules
+    /// do, that the curve rises with pressure on the contraction branch and
+    /// falls with it on the expansion branch. Never NaN (NaN `contraction`
+    /// maps to `R_i`).
+    ///
+    /// Bounded work: at most `N/2 + 1` comparisons, two branch inverses (the
+    /// loop's ends; cached for the top loop, see [`Self::has_cached_loop`]),
+    /// the closed form (and at most the bisection) and one forward
+    /// evaluation.
+    ///
+    /// ```
+    /// use pam_core::effects::{NonLocalMemory, Reversal, ReversalStack};
+    /// use pam_core::{Branch, Coeffs, Params};
+    ///
+    /// let m = Coeffs::new(Params::DEFAULT).unwrap().load_model(200.0).unwrap();
+    /// let mem = NonLocalMemory::with_shape(1.0);
+    /// let mut stack = ReversalStack::<8>::default();
+    /// // Up to 0.3 MPa, reversed there: the curve back down is a minor loop.
+    /// let x_top = m.contraction(0.3, Branch::Contraction);
+    /// stack.push(Reversal { pressure_mpa: 0.3, contraction: x_top });
+    /// let x_ref = x_top - 0.02;
+    /// let p = stack.inverse_pressure_mpa(&mem, &m, x_ref, Branch::Expansion, 1.0);
+    /// let mut trial = stack;
+    /// let x = trial.contraction(&mem, &m, p, Branch::Expansion, 1.0);
+    /// assert!((x - x_ref).abs() < 1e-4);
+    /// // Between the branches: above the expansion branch's pressure there.
+    /// assert!(p > m.pressure_mpa(x_ref, Branch::Expansion));
+    /// ```
+    pub fn inverse_pressure_mpa(
+        &mut self,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        contraction: f32,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> f32 {
+        let (lo_x, hi_x) = (model.root_contraction(), model.max_contraction());
+        let x_ref = clamp(contraction, lo_x, hi_x);
+        let mut len = self.len.min(N);
+        for _ in 0..N / 2 + 1 {
+            let Some(target) = len.checked_sub(2).and_then(|i| self.points.get(i)) else {
+                break;
+            };
+            let passed = match branch {
+                Branch::Contraction => x_ref > target.contraction,
+                Branch::Expansion => x_ref < target.contraction,
+            };
+            if !passed {
+                break;
+            }
+            len -= 2;
+        }
+        let origin = len.checked_sub(1).and_then(|i| self.points.get(i));
+        let Some(&origin) = origin else {
+            return branch_pressure_mpa(model, x_ref, branch, offset_scale);
+        };
+        let blend = params.blend_coeffs();
+        let seg = if len == self.len {
+            // The top loop: cached between calls, as for `contraction`.
+            match self.segment(blend, model, branch, offset_scale) {
+                Some(seg) => seg,
+                None => return branch_pressure_mpa(model, x_ref, branch, offset_scale),
+            }
+        } else {
+            let target = len.checked_sub(2).and_then(|i| self.points.get(i)).copied();
+            Segment::new(blend, model, origin, target, branch, offset_scale)
+        };
+        if let Some(b) = seg.solve(blend, x_ref) {
+            return branch_pressure_mpa(model, clamp(b, lo_x, hi_x), branch, offset_scale);
+        }
+        // No closed-form candidate (x_ref beyond the curve's reach, or
+        // rounding at a region boundary): x(B) is non-decreasing in B, so
+        // bisect for the largest B with x(B) <= x_ref.
+        let (mut lo, mut hi) = (lo_x, hi_x);
+        for _ in 0..MEMORY_INVERSE_STEPS {
+            let mid = 0.5 * (lo + hi);
+            if seg.eval(blend, model, mid) <= x_ref {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        branch_pressure_mpa(model, 0.5 * (lo + hi), branch, offset_scale)
     }
 
     /// [`Self::contraction`] for the [`Simulator`](crate::Simulator), given
@@ -425,6 +508,68 @@ impl<const N: usize> ReversalStack<N> {
 }
 
 impl Segment {
+    /// The minor loop from `origin` towards `target` (the end of the major
+    /// loop when `None`): two branch inverses.
+    fn new(
+        blend: Blend,
+        model: &LoadModel,
+        origin: Reversal,
+        target: Option<Reversal>,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> Segment {
+        let scale_bits = offset_scale.to_bits();
+        let load_bits = model.load_n().to_bits();
+        let max_contraction_bits = model.max_contraction().to_bits();
+        let merge_bits = blend.inv_merge.to_bits();
+        let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
+        let (b_t, d_t) = match target {
+            Some(t) => {
+                let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
+                (b_t, t.contraction - b_t)
+            }
+            // The first reversal's curve closes on the end of the major loop.
+            None => {
+                let end = match branch {
+                    Branch::Contraction => model.max_pressure_mpa(),
+                    Branch::Expansion => 0.0,
+                };
+                (branch_contraction(model, end, branch, offset_scale), 0.0)
+            }
+        };
+        let span = b_r - b_t;
+        let degenerate = !(span.abs() > 1e-6);
+        let inv_progress = if degenerate {
+            0.0
+        } else if span > 0.0 {
+            (1.0 / span).max(blend.inv_merge)
+        } else {
+            (1.0 / span).min(-blend.inv_merge)
+        };
+        let wipe_sign = match branch {
+            Branch::Contraction => 1.0,
+            Branch::Expansion => -1.0,
+        };
+        Segment {
+            branch,
+            scale_bits,
+            load_bits,
+            max_contraction_bits,
+            merge_bits,
+            wipe_sign,
+            wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
+            b_r,
+            inv_progress,
+            d_t,
+            // A degenerate loop sits at the target's offset (s is 1 there).
+            d_rt: if degenerate {
+                0.0
+            } else {
+                (origin.contraction - b_r) - d_t
+            },
+        }
+    }
+
     /// `B(p) + d_t + (d_r − d_t)·w(s)` for `B(p) = x_branch`, within the
     /// stroke; `s = 1 + (B(p) − B(p_r))·inv_progress` (clamped to `[0, 1]`
     /// by the blend).
@@ -433,6 +578,61 @@ impl Segment {
         let w = blend.apply(1.0 + (x_branch - self.b_r) * self.inv_progress);
         let x = x_branch + self.d_t + self.d_rt * w;
         clamp(x, model.root_contraction(), model.max_contraction())
+    }
+
+    /// The branch contraction `B` at which the loop's curve (unclamped) is
+    /// at `x_ref`, in closed form, or `None` when no candidate checks out.
+    ///
+    /// With `s = 1 + (B − B_r)·i` (`i` = `inv_progress`) the curve is
+    /// `B + d_t + d_rt·w(s)`. Where `s ≥ 1` (`w = 1`) it is
+    /// `B = x_ref − d_t − d_rt`; where `s ≤ 0` (`w = 0`), `B = x_ref − d_t`;
+    /// in between, `B = B_r + (s − 1)/i` and
+    /// `(s − 1)(k + (1 − k)s) + i·d_rt·s − i·c·(k + (1 − k)s) = 0`,
+    /// `c = x_ref − d_t − B_r`: a quadratic in `s`. Each candidate is
+    /// checked against its region and the curve.
+    fn solve(&self, blend: Blend, x_ref: f32) -> Option<f32> {
+        let big_x = x_ref - self.d_t;
+        let i = self.inv_progress;
+        let s_of = |b: f32| 1.0 + (b - self.b_r) * i;
+        let fits = |b: f32| {
+            let w = blend.apply(s_of(b));
+            let x = b + self.d_t + self.d_rt * w;
+            (x - x_ref).abs() <= 1e-6 + 1e-5 * x_ref.abs()
+        };
+        // w = 1 (at or behind the turning point, or a degenerate loop).
+        let b1 = big_x - self.d_rt;
+        if !(s_of(b1) < 1.0) && fits(b1) {
+            return Some(b1);
+        }
+        // w = 0 (merged: parallel to the branch at the target's offset).
+        if !(s_of(big_x) > 0.0) && fits(big_x) {
+            return Some(big_x);
+        }
+        if i == 0.0 {
+            return None;
+        }
+        let (k, m) = (blend.k, blend.one_minus_k);
+        let c = big_x - self.b_r;
+        let qa = m;
+        let qb = k - m + i * self.d_rt - i * c * m;
+        let qc = -k * (1.0 + i * c);
+        let mut roots = [f32::NAN; 2];
+        if qa.abs() < 1e-6 {
+            roots[0] = -qc / qb;
+        } else {
+            let disc = qb * qb - 4.0 * qa * qc;
+            if !(disc >= 0.0) {
+                return None;
+            }
+            let root = crate::math::sqrt(disc);
+            let q = -0.5 * (qb + if qb >= 0.0 { root } else { -root });
+            roots = [q / qa, qc / q];
+        }
+        roots
+            .into_iter()
+            .filter(|s| (-1e-6..=1.0 + 1e-6).contains(s))
+            .map(|s| self.b_r + (s - 1.0) / i)
+            .find(|&b| fits(b))
     }
 }
 
