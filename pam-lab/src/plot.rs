@@ -1,4 +1,5 @@
-//! Plots (PNG, via `plotters`), written atomically.
+//! Plots (PNG, via `plotters`), drawn to the path given (the commands give
+//! a staging path of their [`crate::output::OutputSet`]).
 //!
 //! * [`fit_plot`]: pressure against contraction, data and model per load, as
 //!   the paper's Fig. 5 (held-out samples dark, training samples light).
@@ -71,7 +72,8 @@ pub fn fit_plot(
         record.source
     );
     ensure_font();
-    crate::atomic::write_via_path(path, |tmp| {
+    (|| -> Result<()> {
+        let tmp = path;
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
         let mut chart = ChartBuilder::on(&root)
@@ -140,7 +142,7 @@ pub fn fit_plot(
             .map_err(e)?;
         root.present().map_err(e)?;
         Ok(())
-    })
+    })()
 }
 
 /// Measured and predicted contraction over time, and the error.
@@ -159,7 +161,8 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
     });
     let emax = sim.iter().map(|s| s.error().abs()).fold(1e-6, f64::max);
     ensure_font();
-    crate::atomic::write_via_path(path, |tmp| {
+    (|| -> Result<()> {
+        let tmp = path;
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
         let (top, bottom) = root.split_vertically(520);
@@ -218,7 +221,7 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
         .map_err(e)?;
         root.present().map_err(e)?;
         Ok(())
-    })
+    })()
 }
 
 /// Register the bundled DejaVu Sans (`assets/DejaVuSans.ttf`, licence beside
