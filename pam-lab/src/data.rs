@@ -405,18 +405,26 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
-        .comment(Some(b'#'))
         .trim(csv::Trim::All)
         .from_reader(start);
     let mut row = csv::ByteRecord::new();
-    let read_row = |rdr: &mut csv::Reader<_>, row: &mut csv::ByteRecord, line: u64| {
-        rdr.read_byte_record(row).map_err(|e| {
+    // The next row that is not a comment (`#` first) nor blank.
+    let read_row = |rdr: &mut csv::Reader<_>, row: &mut csv::ByteRecord, line: u64| loop {
+        let more = rdr.read_byte_record(row).map_err(|e| {
             if over.get() {
                 return err(0, None, DataErrorKind::TooLarge);
             }
             let line = e.position().map_or(line, |p| p.line());
             err(line, None, DataErrorKind::Io(e.to_string()))
-        })
+        })?;
+        if !more {
+            return Ok(false);
+        }
+        let first = row.get(0).unwrap_or_default();
+        let blank = row.len() == 1 && first.is_empty();
+        if !blank && !first.starts_with(b"#") {
+            return Ok(true);
+        }
     };
 
     // Header.
@@ -444,9 +452,6 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
     while read_row(&mut rdr, &mut row, last_line)? {
         let line = row.position().map_or(last_line + 1, |p| p.line());
         last_line = line;
-        if row.len() == 1 && row.get(0).is_some_and(<[u8]>::is_empty) {
-            continue; // a line of blanks only
-        }
         if samples.len() >= MAX_ROWS {
             return Err(err(line, None, DataErrorKind::TooManyRows));
         }

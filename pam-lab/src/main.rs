@@ -335,6 +335,10 @@ fn run_fit(data: &Path, out: &Path, cfg: &FitConfig, draw: bool, common: Common)
     cfg.validate()?;
     let mut set = OutputSet::new();
     set.into_dir(out)?;
+    set.check_in_dir(
+        out,
+        &["model.json", "model.blob", "model_params.rs", "fit.png"][..if draw { 4 } else { 3 }],
+    )?;
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Fit)?;
@@ -436,6 +440,10 @@ fn run_diagnose(
     cfg.fit.validate()?;
     let mut set = OutputSet::new();
     set.into_dir(out)?;
+    set.check_in_dir(
+        out,
+        &["report.json", "residual.png", "loops.png"][..if draw { 3 } else { 1 }],
+    )?;
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Diagnose)?;

@@ -81,10 +81,20 @@ impl OutputSet {
     /// ancestor must be a directory.
     pub fn into_dir(&mut self, dir: &Path) -> Result<(), OutputError> {
         match std::fs::metadata(dir) {
-            Ok(m) if m.is_dir() => return Ok(()),
+            Ok(m) if m.is_dir() => return self.stage_for(&dir.join("x")).map(|_| ()),
             Ok(_) => return Err(out_err(dir, "cannot write into it", "not a directory")),
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                return Err(out_err(dir, "cannot use as the output directory", e))
+                // A file where a directory should be, further up?
+                for a in dir.ancestors().skip(1).filter(|a| !a.as_os_str().is_empty()) {
+                    if a.is_file() {
+                        return Err(out_err(
+                            a,
+                            "cannot create the output directory below it",
+                            "not a directory",
+                        ));
+                    }
+                }
+                return Err(out_err(dir, "cannot use as the output directory", e));
             }
             Err(_) => {}
         }
@@ -113,6 +123,17 @@ impl OutputSet {
         }
         // The staging directory now: an unwritable place fails before the work.
         self.stage_for(&dir.join("x")).map(|_| ())
+    }
+
+    /// [`OutputSet::check_target`] for each of `names` in `dir`, when `dir`
+    /// exists already (a new one is empty).
+    pub fn check_in_dir(&mut self, dir: &Path, names: &[&str]) -> Result<(), OutputError> {
+        if dir.is_dir() {
+            for n in names {
+                self.check_target(&dir.join(n))?;
+            }
+        }
+        Ok(())
     }
 
     /// Check now, before the work, that `target` can be written: not a
