@@ -18,7 +18,7 @@ use std::path::Path;
 
 use pam_core::{Coeffs, TrackerConfig};
 
-use crate::data::{self, num, DataError, Purpose, Record};
+use crate::data::{self, num, num32, DataError, Purpose, Record};
 use crate::diagnose::{self, DiagnoseConfig, DiagnoseError, DiagnoseReport};
 use crate::fit::{self, FitConfig, FitError, FitReport, Progress};
 use crate::model_file::{self, FitSummary, ModelFile};
@@ -129,10 +129,10 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
     let _ = writeln!(
         out,
         "  loads {}..{} N, step {} N; Pmax {} MPa ({:?})",
-        num(p.min_load_n.into()),
-        num(p.max_load_n.into()),
-        num(p.load_step_n.into()),
-        num(p.points.max_pressure_mpa.into()),
+        num32(p.min_load_n),
+        num32(p.max_load_n),
+        num32(p.load_step_n),
+        num32(p.points.max_pressure_mpa),
         report.pmax_source
     );
     let _ = writeln!(

@@ -204,6 +204,17 @@ pub fn num(v: f64) -> String {
     }
 }
 
+/// [`num`] for an `f32`: its own shortest text (`0.49886334`, not the
+/// `f64` widening's `0.4988633394241333`).
+pub fn num32(v: f32) -> String {
+    let a = v.abs();
+    if v == 0.0 || (1e-4..1e7).contains(&a) || !v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 impl fmt::Display for DataError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.file)?;
