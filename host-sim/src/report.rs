@@ -228,7 +228,7 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
     let root = SVGBackend::new(path, (900, 650)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(title, ("sans-serif", 20))?;
-    let (chart_area, bar_area) = root.split_horizontally(780);
+    let (chart_area, bar_area) = root.split_horizontally(770);
     let kept: Vec<&TraceRow> = run
         .trace
         .iter()
@@ -257,15 +257,15 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
     // Colour bar: the load scale.
     bar_area.draw(&Text::new("load (N)", (10, 20), ("sans-serif", 15)))?;
     let (top, bottom) = (50, 560);
-    let steps = 100;
-    for k in 0..steps {
-        let y0 = bottom - (bottom - top) * (k + 1) / steps;
-        let y1 = bottom - (bottom - top) * k / steps;
-        let col = load_colour(k as f64 / (steps - 1) as f64);
-        bar_area.draw(&Rectangle::new([(14, y0), (40, y1)], col.filled()))?;
-    }
-    bar_area.draw(&Rectangle::new([(14, top), (40, bottom)], BLACK.stroke_width(1)))?;
     if lmax > lmin {
+        let steps = 100;
+        for k in 0..steps {
+            let y0 = bottom - (bottom - top) * (k + 1) / steps;
+            let y1 = bottom - (bottom - top) * k / steps;
+            let col = load_colour(k as f64 / (steps - 1) as f64);
+            bar_area.draw(&Rectangle::new([(14, y0), (40, y1)], col.filled()))?;
+        }
+        bar_area.draw(&Rectangle::new([(14, top), (40, bottom)], BLACK.stroke_width(1)))?;
         for k in 0..=4 {
             let v = lmin + (lmax - lmin) * k as f64 / 4.0;
             let y = bottom - (bottom - top) * k / 4;
@@ -273,8 +273,10 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
             bar_area.draw(&Text::new(format!("{v:.0}"), (50, y - 7), ("sans-serif", 14)))?;
         }
     } else if lmax >= lmin {
-        let y = (top + bottom) / 2;
-        bar_area.draw(&Text::new(format!("{lmin:.0} (constant)"), (46, y - 7), ("sans-serif", 14)))?;
+        // One load: one colour, no scale to read.
+        bar_area.draw(&Rectangle::new([(14, top), (40, top + 26)], load_colour(0.5).filled()))?;
+        bar_area.draw(&Text::new(format!("{lmin:.0} N"), (46, top + 5), ("sans-serif", 14)))?;
+        bar_area.draw(&Text::new("(constant)", (14, top + 36), ("sans-serif", 14)))?;
     }
     root.present()?;
     Ok(())

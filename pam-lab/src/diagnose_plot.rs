@@ -98,13 +98,20 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
         }))?
         .label("held-out block (grey band)")
         .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], grey.filled()));
-    chart.draw_series(runs(&r.heldout).into_iter().map(|(a, _)| {
-        Text::new(
-            "held out",
-            (t(a), 1.0 * lim),
-            ("sans-serif", 14).into_font().color(&RGBColor(90, 90, 90)),
-        )
-    }))?;
+    // The words on each band only where they fit (wide blocks); the legend
+    // names the grey band either way.
+    chart.draw_series(
+        runs(&r.heldout)
+            .into_iter()
+            .filter(|&(a, b)| t(b) - t(a) > 0.06 * (t1 - t0))
+            .map(|(a, _)| {
+                Text::new(
+                    "held out",
+                    (t(a), 1.0 * lim),
+                    ("sans-serif", 14).into_font().color(&RGBColor(90, 90, 90)),
+                )
+            }),
+    )?;
     chart.draw_series(std::iter::once(PathElement::new(
         vec![(t0, -1.02 * lim), (t1, -1.02 * lim)],
         BLACK.mix(0.4),
