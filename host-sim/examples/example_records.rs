@@ -51,7 +51,7 @@ fn protocol(rig: &mut Rig, out: &mut Vec<Sample>) {
     }
     let mut p = 0.0;
     for (to, rate) in MOVES {
-        let n = ((to - p) as f64).abs() / rate / dt;
+        let n = (to - p).abs() / rate / dt;
         let n = n.round() as usize;
         let from = p;
         for k in 0..n {

@@ -87,7 +87,13 @@ pub fn plot_scenario(
     root.fill(&WHITE)?;
     let root = root.titled(title, ("sans-serif", 22))?;
     let rows = root.split_evenly((4, 1));
-    let t_end = first.run.trace.last().map(|r| r.t_s).unwrap_or(1.0).max(1e-3);
+    let t_end = first
+        .run
+        .trace
+        .last()
+        .map(|r| r.t_s)
+        .unwrap_or(1.0)
+        .max(1e-3);
     let step = (first.run.trace.len() / 4000).max(1);
     let line = |trace: &[TraceRow], f: &dyn Fn(&TraceRow) -> f64| -> Vec<(f64, f64)> {
         trace.iter().step_by(step).map(|r| (r.t_s, f(r))).collect()
@@ -117,10 +123,16 @@ pub fn plot_scenario(
     ))?;
     let mut entries = vec![("reference".to_string(), GREY.stroke_width(3))];
     for s in runs {
-        c.draw_series(LineSeries::new(line(&s.run.trace, &|r| r.contraction), s.colour))?;
+        c.draw_series(LineSeries::new(
+            line(&s.run.trace, &|r| r.contraction),
+            s.colour,
+        ))?;
         entries.push((s.label.to_string(), s.colour.stroke_width(2)));
     }
-    entries.push((format!("warm-up ({warmup_s:.0} s, shaded)"), warm.filled().stroke_width(10)));
+    entries.push((
+        format!("warm-up ({warmup_s:.0} s, shaded)"),
+        warm.filled().stroke_width(10),
+    ));
     legend(&legend_area, &entries)?;
 
     // 2. Tracking error, on its own scale (after the warm-up).
@@ -175,10 +187,16 @@ pub fn plot_scenario(
         .draw()?;
     let mut entries = Vec::new();
     for s in runs {
-        c.draw_series(LineSeries::new(line(&s.run.trace, &|r| r.pressure_mpa), s.colour))?;
+        c.draw_series(LineSeries::new(
+            line(&s.run.trace, &|r| r.pressure_mpa),
+            s.colour,
+        ))?;
         entries.push((format!("chamber, {}", s.label), s.colour.stroke_width(2)));
     }
-    for s in runs.iter().filter(|s| s.run.trace.iter().any(|r| r.feedforward_mpa != 0.0)) {
+    for s in runs
+        .iter()
+        .filter(|s| s.run.trace.iter().any(|r| r.feedforward_mpa != 0.0))
+    {
         let dashed = s.colour.mix(0.5);
         c.draw_series(LineSeries::new(
             line(&s.run.trace, &|r| r.feedforward_mpa),
@@ -205,9 +223,18 @@ pub fn plot_scenario(
         GREY.stroke_width(3),
     ))?;
     let mut entries = vec![("load on the rig".to_string(), GREY.stroke_width(3))];
-    for s in runs.iter().filter(|s| s.run.trace.iter().any(|r| r.feedforward_mpa != 0.0)) {
-        c.draw_series(LineSeries::new(line(&s.run.trace, &|r| r.model_load_n), s.colour))?;
-        entries.push((format!("active model, {}", s.label), s.colour.stroke_width(2)));
+    for s in runs
+        .iter()
+        .filter(|s| s.run.trace.iter().any(|r| r.feedforward_mpa != 0.0))
+    {
+        c.draw_series(LineSeries::new(
+            line(&s.run.trace, &|r| r.model_load_n),
+            s.colour,
+        ))?;
+        entries.push((
+            format!("active model, {}", s.label),
+            s.colour.stroke_width(2),
+        ));
     }
     legend(&legend_area, &entries)?;
     root.present()?;
@@ -246,14 +273,23 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
         .x_desc("contraction")
         .y_desc("pressure (MPa)")
         .draw()?;
-    let (lmin, lmax) = kept
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.load_n), b.max(r.load_n)));
-    let u = |l: f64| if lmax > lmin { (l - lmin) / (lmax - lmin) } else { 0.5 };
-    c.draw_series(
-        kept.iter()
-            .map(|r| Circle::new((r.contraction, r.pressure_mpa), 1, load_colour(u(r.load_n)).filled())),
-    )?;
+    let (lmin, lmax) = kept.iter().fold((f64::MAX, f64::MIN), |(a, b), r| {
+        (a.min(r.load_n), b.max(r.load_n))
+    });
+    let u = |l: f64| {
+        if lmax > lmin {
+            (l - lmin) / (lmax - lmin)
+        } else {
+            0.5
+        }
+    };
+    c.draw_series(kept.iter().map(|r| {
+        Circle::new(
+            (r.contraction, r.pressure_mpa),
+            1,
+            load_colour(u(r.load_n)).filled(),
+        )
+    }))?;
     // Colour bar: the load scale.
     bar_area.draw(&Text::new("load (N)", (10, 20), ("sans-serif", 15)))?;
     let (top, bottom) = (50, 560);
@@ -265,17 +301,31 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
             let col = load_colour(k as f64 / (steps - 1) as f64);
             bar_area.draw(&Rectangle::new([(14, y0), (40, y1)], col.filled()))?;
         }
-        bar_area.draw(&Rectangle::new([(14, top), (40, bottom)], BLACK.stroke_width(1)))?;
+        bar_area.draw(&Rectangle::new(
+            [(14, top), (40, bottom)],
+            BLACK.stroke_width(1),
+        ))?;
         for k in 0..=4 {
             let v = lmin + (lmax - lmin) * k as f64 / 4.0;
             let y = bottom - (bottom - top) * k / 4;
             bar_area.draw(&PathElement::new(vec![(40, y), (46, y)], BLACK))?;
-            bar_area.draw(&Text::new(format!("{v:.0}"), (50, y - 7), ("sans-serif", 14)))?;
+            bar_area.draw(&Text::new(
+                format!("{v:.0}"),
+                (50, y - 7),
+                ("sans-serif", 14),
+            ))?;
         }
     } else if lmax >= lmin {
         // One load: one colour, no scale to read.
-        bar_area.draw(&Rectangle::new([(14, top), (40, top + 26)], load_colour(0.5).filled()))?;
-        bar_area.draw(&Text::new(format!("{lmin:.0} N"), (46, top + 5), ("sans-serif", 14)))?;
+        bar_area.draw(&Rectangle::new(
+            [(14, top), (40, top + 26)],
+            load_colour(0.5).filled(),
+        ))?;
+        bar_area.draw(&Text::new(
+            format!("{lmin:.0} N"),
+            (46, top + 5),
+            ("sans-serif", 14),
+        ))?;
         bar_area.draw(&Text::new("(constant)", (14, top + 36), ("sans-serif", 14)))?;
     }
     root.present()?;

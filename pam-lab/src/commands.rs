@@ -34,7 +34,11 @@ pub fn read_record(path: &Path, purpose: Purpose) -> Result<Record, DataError> {
 }
 
 /// [`read_record`] from any reader; `source` names it in errors.
-pub fn parse_record<R: Read>(source: &str, reader: R, purpose: Purpose) -> Result<Record, DataError> {
+pub fn parse_record<R: Read>(
+    source: &str,
+    reader: R,
+    purpose: Purpose,
+) -> Result<Record, DataError> {
     let record = data::parse_csv(source, reader)?;
     data::check_record(&record, purpose)?;
     Ok(record)
@@ -162,7 +166,11 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
         out,
         "  test: {} ({})",
         report.test_kind,
-        if cfg.test.is_some() { "given" } else { "detected" }
+        if cfg.test.is_some() {
+            "given"
+        } else {
+            "detected"
+        }
     );
     let _ = writeln!(out, "  shape: {}", report.shape.statement());
     let _ = writeln!(
@@ -210,8 +218,12 @@ pub fn stage_diagnose(
     draw: bool,
 ) -> anyhow::Result<()> {
     set.into_dir(dir)?;
-    let mut json = serde_json::to_string_pretty(report)
-        .map_err(|e| anyhow::anyhow!("{}: cannot encode the report: {e}", dir.join("report.json").display()))?;
+    let mut json = serde_json::to_string_pretty(report).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: cannot encode the report: {e}",
+            dir.join("report.json").display()
+        )
+    })?;
     json.push('\n');
     set.add_bytes(&dir.join("report.json"), json.as_bytes())?;
     if draw {
@@ -234,7 +246,10 @@ pub fn simulate_record(
 ) -> Result<(Vec<SimSample>, Vec<String>), pam_core::Error> {
     config.validate()?;
     let warnings = range_warnings(coeffs, record);
-    Ok((simulate::simulate(coeffs, config, &record.samples), warnings))
+    Ok((
+        simulate::simulate(coeffs, config, &record.samples),
+        warnings,
+    ))
 }
 
 /// Warnings for samples outside what the model was calibrated for: loads
@@ -247,7 +262,11 @@ pub fn range_warnings(coeffs: &Coeffs, record: &Record) -> Vec<String> {
     let tol = (0.02 * (hi - lo)).max(5.0);
     let pmax = f64::from(p.points.max_pressure_mpa);
     let mut out = Vec::new();
-    let mut describe = |what: &str, outside: &dyn Fn(f64) -> bool, get: fn(&data::Sample) -> f64, range: String, effect: &str| {
+    let mut describe = |what: &str,
+                        outside: &dyn Fn(f64) -> bool,
+                        get: fn(&data::Sample) -> f64,
+                        range: String,
+                        effect: &str| {
         let idx: Vec<usize> = (0..record.len())
             .filter(|&i| outside(get(&record.samples[i])))
             .collect();

@@ -319,16 +319,46 @@ impl std::error::Error for DataError {}
 
 /// Header names that carry a wrong unit, and what to do.
 const WRONG_UNITS: [(&str, &str); 14] = [
-    ("pressure_kpa", "pressure must be in MPa (`pressure_mpa`): divide by 1000"),
-    ("pressure_bar", "pressure must be in MPa (`pressure_mpa`): divide by 10"),
-    ("pressure_psi", "pressure must be in MPa (`pressure_mpa`): multiply by 0.006895"),
-    ("pressure_pa", "pressure must be in MPa (`pressure_mpa`): divide by 1e6"),
-    ("pressure", "name the pressure column `pressure_mpa`, in MPa"),
-    ("contraction_pct", "contraction must be a fraction of rest length: divide by 100"),
-    ("contraction_percent", "contraction must be a fraction of rest length: divide by 100"),
-    ("contraction_%", "contraction must be a fraction of rest length: divide by 100"),
-    ("contraction_mm", "contraction must be a fraction of rest length: divide by the rest length"),
-    ("load_kg", "load must be in newtons (`load_n`): multiply by 9.81"),
+    (
+        "pressure_kpa",
+        "pressure must be in MPa (`pressure_mpa`): divide by 1000",
+    ),
+    (
+        "pressure_bar",
+        "pressure must be in MPa (`pressure_mpa`): divide by 10",
+    ),
+    (
+        "pressure_psi",
+        "pressure must be in MPa (`pressure_mpa`): multiply by 0.006895",
+    ),
+    (
+        "pressure_pa",
+        "pressure must be in MPa (`pressure_mpa`): divide by 1e6",
+    ),
+    (
+        "pressure",
+        "name the pressure column `pressure_mpa`, in MPa",
+    ),
+    (
+        "contraction_pct",
+        "contraction must be a fraction of rest length: divide by 100",
+    ),
+    (
+        "contraction_percent",
+        "contraction must be a fraction of rest length: divide by 100",
+    ),
+    (
+        "contraction_%",
+        "contraction must be a fraction of rest length: divide by 100",
+    ),
+    (
+        "contraction_mm",
+        "contraction must be a fraction of rest length: divide by the rest length",
+    ),
+    (
+        "load_kg",
+        "load must be in newtons (`load_n`): multiply by 9.81",
+    ),
     ("load", "name the load column `load_n`, in newtons"),
     ("t_ms", "time must be in seconds (`t_s`): divide by 1000"),
     ("time", "name the time column `t_s`, in seconds"),
@@ -578,9 +608,10 @@ fn check_header(header: &[String]) -> Result<(), (Option<String>, DataErrorKind)
         }
         for h in header {
             let low = h.to_ascii_lowercase();
-            if let Some((_, hint)) = WRONG_UNITS.iter().find(|(n, _)| {
-                *n == low && n.split('_').next() == c.split('_').next()
-            }) {
+            if let Some((_, hint)) = WRONG_UNITS
+                .iter()
+                .find(|(n, _)| *n == low && n.split('_').next() == c.split('_').next())
+            {
                 return Err((
                     Some(c.to_string()),
                     DataErrorKind::WrongUnit {
@@ -619,6 +650,9 @@ pub enum Purpose {
     Simulate,
 }
 
+/// One channel of a sample.
+type Channel = fn(&Sample) -> f64;
+
 /// Fewest samples `diagnose` works on.
 pub const DIAGNOSE_MIN_SAMPLES: usize = 100;
 
@@ -650,7 +684,7 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
         ));
     }
     let constant = |f: fn(&Sample) -> f64| s.iter().all(|x| f(x) == f(first));
-    let mut need: Vec<(&str, fn(&Sample) -> f64)> = vec![("pressure_mpa", |x| x.pressure_mpa)];
+    let mut need: Vec<(&str, Channel)> = vec![("pressure_mpa", |x| x.pressure_mpa)];
     if purpose != Purpose::Simulate {
         need.push(("contraction", |x| x.contraction));
     }
@@ -666,7 +700,7 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
     // A stuck sensor: one exact value for a long run while another channel
     // moves. (Quantised readings repeat on holds, but then nothing moves.)
     let min_run = (s.len() / 10).max(200);
-    let channels: [(&str, fn(&Sample) -> f64, fn(&Sample) -> f64, &str, f64); 2] = [
+    let channels: [(&str, Channel, Channel, &str, f64); 2] = [
         (
             "contraction",
             |x| x.contraction,

@@ -940,8 +940,14 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     let keep = |i: &usize| !heldout[*i];
     let train_record = Record {
         source: format!("{} (training part)", record.source),
-        samples: (0..samples.len()).filter(keep).map(|i| record.samples[i]).collect(),
-        lines: (0..samples.len()).filter(keep).map(|i| record.line(i)).collect(),
+        samples: (0..samples.len())
+            .filter(keep)
+            .map(|i| record.samples[i])
+            .collect(),
+        lines: (0..samples.len())
+            .filter(keep)
+            .map(|i| record.line(i))
+            .collect(),
     };
     let mut fit_cfg = cfg.fit.clone();
     fit_cfg.holdout = Holdout::None;

@@ -32,7 +32,13 @@ pub struct OutputError {
 
 impl fmt::Display for OutputError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}: {}", self.path.display(), self.action, self.cause)
+        write!(
+            f,
+            "{}: {}: {}",
+            self.path.display(),
+            self.action,
+            self.cause
+        )
     }
 }
 
@@ -85,7 +91,11 @@ impl OutputSet {
             Ok(_) => return Err(out_err(dir, "cannot write into it", "not a directory")),
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
                 // A file where a directory should be, further up?
-                for a in dir.ancestors().skip(1).filter(|a| !a.as_os_str().is_empty()) {
+                for a in dir
+                    .ancestors()
+                    .skip(1)
+                    .filter(|a| !a.as_os_str().is_empty())
+                {
                     if a.is_file() {
                         return Err(out_err(
                             a,
@@ -184,7 +194,11 @@ impl OutputSet {
 
     fn staged_path(&mut self, target: &Path) -> Result<PathBuf, OutputError> {
         if self.files.iter().any(|(_, t)| t == target) {
-            return Err(out_err(target, "cannot write", "named twice in one command"));
+            return Err(out_err(
+                target,
+                "cannot write",
+                "named twice in one command",
+            ));
         }
         if target.is_dir() {
             return Err(out_err(target, "cannot write", "is a directory"));
@@ -211,7 +225,8 @@ impl OutputSet {
         F: FnOnce(&mut dyn Write) -> std::io::Result<()>,
     {
         let staged = self.staged_path(target)?;
-        let file = std::fs::File::create(&staged).map_err(|e| out_err(target, "cannot write", e))?;
+        let file =
+            std::fs::File::create(&staged).map_err(|e| out_err(target, "cannot write", e))?;
         let mut w = std::io::BufWriter::new(file);
         fill(&mut w).map_err(|e| out_err(target, "cannot write", e))?;
         w.flush().map_err(|e| out_err(target, "cannot write", e))?;
@@ -228,7 +243,9 @@ impl OutputSet {
         let staged = self.staged_path(target)?;
         draw(&staged).map_err(|e| out_err(target, "cannot draw", format!("{e:#}")))?;
         if !staged.is_file() {
-            return Err(out_err(target, "cannot draw", "the plotting backend wrote nothing").into());
+            return Err(
+                out_err(target, "cannot draw", "the plotting backend wrote nothing").into(),
+            );
         }
         Ok(())
     }
@@ -333,7 +350,9 @@ fn ordinary_mode() -> u32 {
             let f = d.path().join("probe");
             std::fs::File::create(&f).ok()?;
             use std::os::unix::fs::PermissionsExt;
-            std::fs::metadata(&f).ok().map(|m| m.permissions().mode() & 0o777)
+            std::fs::metadata(&f)
+                .ok()
+                .map(|m| m.permissions().mode() & 0o777)
         });
     probe.unwrap_or(0o644)
 }

@@ -152,7 +152,10 @@ pub fn fit_plot(
         }
         entries.push(("thick: contraction branch".into(), BLACK.stroke_width(3)));
         entries.push(("thin: expansion branch".into(), BLACK.stroke_width(1)));
-        entries.push(("dots: data, dark held out".into(), BLACK.mix(0.5).stroke_width(1)));
+        entries.push((
+            "dots: data, dark held out".into(),
+            BLACK.mix(0.5).stroke_width(1),
+        ));
         legend(&legend_area, &entries)?;
         root.present().map_err(e)?;
         Ok(())

@@ -196,7 +196,11 @@ fn outputs_have_ordinary_permissions_and_quiet_prints_nothing() {
     let dir = tempfile::tempdir().unwrap();
     write_record(&dir.path().join("rig.csv"), &[100.0, 300.0]);
     let out = pam_lab_in(dir.path(), &["fit", "rig.csv", "-o", "fit", "-q"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(out.stdout.is_empty() && out.stderr.is_empty(), "quiet");
     #[cfg(unix)]
     {
@@ -206,7 +210,14 @@ fn outputs_have_ordinary_permissions_and_quiet_prints_nothing() {
         std::fs::write(&probe, b"").unwrap();
         let ordinary = probe.metadata().unwrap().permissions().mode() & 0o777;
         for f in ["model.json", "model.blob", "model_params.rs", "fit.png"] {
-            let mode = dir.path().join("fit").join(f).metadata().unwrap().permissions().mode();
+            let mode = dir
+                .path()
+                .join("fit")
+                .join(f)
+                .metadata()
+                .unwrap()
+                .permissions()
+                .mode();
             assert_eq!(mode & 0o777, ordinary, "{f}: {:o}", mode & 0o777);
         }
     }
@@ -246,7 +257,10 @@ fn simulate_warns_about_loads_outside_the_calibrated_range() {
         pam_lab::model_file::ModelFile::new(Params::DEFAULT, None).to_json(),
     )
     .unwrap();
-    let out = pam_lab_in(dir.path(), &["simulate", "model.json", "rig.csv", "-o", "sim.csv"]);
+    let out = pam_lab_in(
+        dir.path(),
+        &["simulate", "model.json", "rig.csv", "-o", "sim.csv"],
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     let first_line = half + 1;
@@ -266,12 +280,20 @@ fn diagnose_writes_its_three_files_at_once() {
     write_record(&dir.path().join("rig.csv"), &[100.0, 200.0, 300.0]);
     let out = pam_lab_in(dir.path(), &["diagnose", "rig.csv", "-o", "diag"]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     for f in ["report.json", "residual.png", "loops.png"] {
-        assert!(dir.path().join("diag").join(f).metadata().unwrap().len() > 0, "{f}");
+        assert!(
+            dir.path().join("diag").join(f).metadata().unwrap().len() > 0,
+            "{f}"
+        );
         assert!(stdout.contains(&format!("wrote diag/{f}")), "{stdout}");
     }
     let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("diag/report.json")).unwrap()).unwrap();
+        serde_json::from_slice(&std::fs::read(dir.path().join("diag/report.json")).unwrap())
+            .unwrap();
     assert!(json.get("named").is_some(), "{json}");
 }

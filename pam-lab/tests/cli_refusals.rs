@@ -24,13 +24,7 @@ fn good_rows() -> Vec<String> {
 
 /// A good record at `loads` as CSV rows.
 fn rows_at(loads: &[f64]) -> Vec<String> {
-    let rec = generate(
-        &Params::DEFAULT,
-        &Protocol::quick(loads),
-        0.001,
-        0.0008,
-        5,
-    );
+    let rec = generate(&Params::DEFAULT, &Protocol::quick(loads), 0.001, 0.0008, 5);
     rec.samples
         .iter()
         .map(|s| {
@@ -205,7 +199,10 @@ fn fit_random_bytes() {
         })
         .chain([0u8])
         .collect();
-    fit_refuses(bytes, &["error: bad.csv: not a text file (a NUL byte or invalid UTF-8 at byte"]);
+    fit_refuses(
+        bytes,
+        &["error: bad.csv: not a text file (a NUL byte or invalid UTF-8 at byte"],
+    );
 }
 
 #[cfg(unix)]
@@ -429,9 +426,7 @@ fn fit_decimal_commas() {
 
 #[test]
 fn fit_time_backwards() {
-    let text = format!(
-        "{HEADER}\n# c\n1,100,0.1,0.02\n0.9,100,0.1,0.02\n"
-    );
+    let text = format!("{HEADER}\n# c\n1,100,0.1,0.02\n0.9,100,0.1,0.02\n");
     fit_refuses(
         csv(text),
         &["error: bad.csv:4: column `t_s`: time goes backwards (0.9 s after 1 s on the previous sample)"],
@@ -530,7 +525,11 @@ fn fit_contraction_stuck_for_half_the_record() {
     fit_refuses(
         csv(text),
         &[
-            &format!("error: bad.csv:{}: column `contraction`: stuck at 0.1 up to line {}", n / 2 + 2, n + 1),
+            &format!(
+                "error: bad.csv:{}: column `contraction`: stuck at 0.1 up to line {}",
+                n / 2 + 2,
+                n + 1
+            ),
             "MPa of pressure moved: a sensor fault",
         ],
     );
@@ -547,7 +546,10 @@ fn fit_pressure_sensor_stuck() {
     fit_refuses(
         csv(text),
         &[
-            &format!("error: bad.csv:{}: column `pressure_mpa`: stuck at 0.3", n / 4 + 2),
+            &format!(
+                "error: bad.csv:{}: column `pressure_mpa`: stuck at 0.3",
+                n / 4 + 2
+            ),
             "of contraction moved",
         ],
     );
@@ -628,7 +630,10 @@ fn fit_zero_min_samples() {
 
 #[test]
 fn fit_unknown_test_kind() {
-    fit_option_refused(&["--test", "sideways"], "invalid value 'sideways' for '--test");
+    fit_option_refused(
+        &["--test", "sideways"],
+        "invalid value 'sideways' for '--test",
+    );
 }
 
 #[test]
@@ -690,7 +695,11 @@ fn simulate_corrupt_blob() {
     let mut blob = pam_core::blob::encode(&Params::DEFAULT).to_vec();
     blob[30] ^= 4;
     refused(
-        &[("bad.csv", csv(good_csv())), ("m.blob", blob), ("sim.csv", csv("old"))],
+        &[
+            ("bad.csv", csv(good_csv())),
+            ("m.blob", blob),
+            ("sim.csv", csv("old")),
+        ],
         &["simulate", "m.blob", "bad.csv", "-o", "sim.csv"],
         &["error: m.blob: ", "CRC"],
     );
@@ -699,7 +708,10 @@ fn simulate_corrupt_blob() {
 #[test]
 fn simulate_model_not_json() {
     refused(
-        &[("bad.csv", csv(good_csv())), ("m.json", csv("{\n  \"format\": 3,\n"))],
+        &[
+            ("bad.csv", csv(good_csv())),
+            ("m.json", csv("{\n  \"format\": 3,\n")),
+        ],
         &["simulate", "m.json", "bad.csv"],
         &["error: m.json:2:", "not a model file"],
     );
@@ -761,7 +773,15 @@ fn simulate_output_is_a_directory() {
 fn simulate_plot_into_a_missing_directory_writes_no_csv() {
     refused(
         &[("bad.csv", csv(good_csv())), ("model.json", model_json())],
-        &["simulate", "model.json", "bad.csv", "-o", "sim.csv", "--plot", "no/such/sim.png"],
+        &[
+            "simulate",
+            "model.json",
+            "bad.csv",
+            "-o",
+            "sim.csv",
+            "--plot",
+            "no/such/sim.png",
+        ],
         &["error: no/such: cannot write into it: No such file"],
     );
 }
@@ -770,7 +790,15 @@ fn simulate_plot_into_a_missing_directory_writes_no_csv() {
 fn simulate_same_file_for_csv_and_plot() {
     refused(
         &[("bad.csv", csv(good_csv())), ("model.json", model_json())],
-        &["simulate", "model.json", "bad.csv", "-o", "x.png", "--plot", "x.png"],
+        &[
+            "simulate",
+            "model.json",
+            "bad.csv",
+            "-o",
+            "x.png",
+            "--plot",
+            "x.png",
+        ],
         &["error: x.png: cannot write: named twice in one command"],
     );
 }
@@ -871,7 +899,10 @@ fn diagnose_contraction_stuck() {
                 f[3] = "0.1".into();
             }
         })),
-        &[&format!("error: bad.csv:{}: column `contraction`: stuck at 0.1", n / 2 + 2)],
+        &[&format!(
+            "error: bad.csv:{}: column `contraction`: stuck at 0.1",
+            n / 2 + 2
+        )],
     );
 }
 
@@ -888,7 +919,11 @@ fn a_byte_order_mark_is_accepted() {
         .current_dir(dir.path())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(dir.path().join("out/model.json").is_file());
     assert!(out.stdout.is_empty(), "quiet");
 }
