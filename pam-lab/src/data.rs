@@ -382,12 +382,45 @@ pub fn read_csv(path: &Path) -> Result<Record, DataError> {
     parse_csv(&name, file)
 }
 
-/// A reader that stops with an error past [`MAX_BYTES`], and remembers
-/// whether it did.
+/// Byte offsets of the line ends (`\n`, and `\r`) read so far and not yet
+/// passed, and how many lines were passed: the line of a record from its
+/// byte offset, as an editor counts lines. (The `csv` crate's own line
+/// count skips blank lines, and its record offset can point at the blank
+/// lines before the record.)
+#[derive(Default)]
+struct Lines {
+    /// `(offset, is '\n')`.
+    pending: std::collections::VecDeque<(u64, bool)>,
+    passed: u64,
+}
+
+impl Lines {
+    /// 1-based line of the record reported at `offset`. Offsets must not
+    /// decrease between calls (records are read in order).
+    fn line_of(&mut self, mut offset: u64) -> u64 {
+        while let Some(&(at, lf)) = self.pending.front() {
+            if at < offset {
+                self.passed += u64::from(lf);
+            } else if at == offset {
+                // The record starts after the line ends at its offset.
+                self.passed += u64::from(lf);
+                offset += 1;
+            } else {
+                break;
+            }
+            self.pending.pop_front();
+        }
+        self.passed + 1
+    }
+}
+
+/// A reader that stops with an error past [`MAX_BYTES`], remembers whether
+/// it did, and notes where the newlines are.
 struct Bounded<R> {
     inner: R,
     read: u64,
     over: std::rc::Rc<std::cell::Cell<bool>>,
+    lines: std::rc::Rc<std::cell::RefCell<Lines>>,
 }
 
 impl<R: Read> Read for Bounded<R> {
@@ -403,6 +436,12 @@ impl<R: Read> Read for Bounded<R> {
         }
         let room = (MAX_BYTES - self.read).min(buf.len() as u64) as usize;
         let n = self.inner.read(&mut buf[..room])?;
+        let mut lines = self.lines.borrow_mut();
+        for (i, b) in buf[..n].iter().enumerate() {
+            if *b == b'\n' || *b == b'\r' {
+                lines.pending.push_back((self.read + i as u64, *b == b'\n'));
+            }
+        }
         self.read += n as u64;
         Ok(n)
     }
@@ -426,10 +465,12 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
     };
     // Look at the start: a BOM, a binary file.
     let over = std::rc::Rc::new(std::cell::Cell::new(false));
+    let lines = std::rc::Rc::new(std::cell::RefCell::new(Lines::default()));
     let mut bounded = Bounded {
         inner: reader,
         read: 0,
         over: over.clone(),
+        lines: lines.clone(),
     };
     let mut head = Vec::with_capacity(4096);
     (&mut bounded)
@@ -472,7 +513,12 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
     if !read_row(&mut rdr, &mut row, 0)? {
         return Err(err(0, None, DataErrorKind::NoHeader));
     }
-    let header_line = row.position().map_or(1, |p| p.line());
+    // The csv reader's byte offsets start after a skipped byte-order mark.
+    let line_at = |row: &csv::ByteRecord| {
+        row.position()
+            .map_or(0, |p| lines.borrow_mut().line_of(p.byte() + skip as u64))
+    };
+    let header_line = line_at(&row);
     let header: Vec<String> = row
         .iter()
         .map(|h| String::from_utf8_lossy(h).trim().to_string())
@@ -491,7 +537,7 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
     let mut previous_t: Option<f64> = None;
     let mut last_line = header_line;
     while read_row(&mut rdr, &mut row, last_line)? {
-        let line = row.position().map_or(last_line + 1, |p| p.line());
+        let line = line_at(&row);
         last_line = line;
         if samples.len() >= MAX_ROWS {
             return Err(err(line, None, DataErrorKind::TooManyRows));
@@ -570,13 +616,15 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
 /// `Err(offset)` of the first byte that is not text: NUL, or invalid UTF-8
 /// (a sequence cut by the end of a `truncated` chunk is fine).
 fn check_text(bytes: &[u8], base: u64, truncated: bool) -> Result<(), u64> {
-    if let Some(i) = bytes.iter().position(|&b| b == 0) {
-        return Err(base + i as u64);
-    }
-    match std::str::from_utf8(bytes) {
-        Ok(_) => Ok(()),
-        Err(e) if truncated && e.error_len().is_none() => Ok(()),
-        Err(e) => Err(base + e.valid_up_to() as u64),
+    let nul = bytes.iter().position(|&b| b == 0);
+    let utf8 = match std::str::from_utf8(bytes) {
+        Ok(_) => None,
+        Err(e) if truncated && e.error_len().is_none() => None,
+        Err(e) => Some(e.valid_up_to()),
+    };
+    match (nul, utf8) {
+        (None, None) => Ok(()),
+        (a, b) => Err(base + a.unwrap_or(usize::MAX).min(b.unwrap_or(usize::MAX)) as u64),
     }
 }
 
@@ -858,8 +906,8 @@ mod tests {
         for (row, col) in [
             ("0,-5,0.1,0.02", "load_n"),
             ("0,100,-0.5,0.02", "pressure_mpa"),
-            ("0,100,11,0.02", "pressure_mpa"),
-            ("0,100,0.1,1.2", "contraction"),
+            ("0,100,20000,0.02", "pressure_mpa"),
+            ("0,100,0.1,120", "contraction"),
         ] {
             let e = parse(&format!("t_s,load_n,pressure_mpa,contraction\n{row}\n")).unwrap_err();
             assert_eq!(e.column.as_deref(), Some(col), "{row}");
@@ -882,5 +930,173 @@ mod tests {
     fn unreadable_file_is_named() {
         let e = read_csv(Path::new("/nonexistent/x.csv")).unwrap_err();
         assert!(e.to_string().starts_with("/nonexistent/x.csv: cannot read"));
+    }
+
+    #[test]
+    fn lines_are_counted_as_an_editor_counts_them() {
+        let text = "# a\r\n\r\nt_s,load_n,pressure_mpa,contraction\r\n\r\n\n# b\n1,100,0.1,0.02\n\n\n2,100,0.1,0.02\r\n";
+        assert_eq!(parse(text).unwrap().lines, vec![7, 10]);
+        let e = parse("\n\n# x\n\nt_s,load_n,pressure_mpa\n").unwrap_err();
+        assert_eq!(e.line, 5);
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let r = parse("\u{feff}t_s,load_n,pressure_mpa,contraction\n0,100,0.1,0.02\n").unwrap();
+        assert_eq!(r.len(), 1);
+        assert_eq!(r.lines, vec![2]);
+    }
+
+    #[test]
+    fn separators_other_than_commas_are_named() {
+        for (sep, shown) in [(";", "`;`"), ("\t", "`\\t`"), ("|", "`|`")] {
+            let text = format!(
+                "t_s{sep}load_n{sep}pressure_mpa{sep}contraction\n0{sep}100{sep}0.1{sep}0.02\n"
+            );
+            let e = parse(&text).unwrap_err();
+            assert_eq!(
+                e.kind,
+                DataErrorKind::WrongSeparator(sep.chars().next().unwrap())
+            );
+            assert!(e.to_string().contains(shown), "{e}");
+        }
+    }
+
+    #[test]
+    fn binary_input_is_refused_at_its_first_bad_byte() {
+        let e = parse_csv("x.bin", &b"t_s,load\x00_n"[..]).unwrap_err();
+        assert_eq!(e.kind, DataErrorKind::Binary { offset: 8 });
+        let e = parse_csv("x.bin", &b"\xff\xfe\x00t"[..]).unwrap_err();
+        assert_eq!(e.kind, DataErrorKind::Binary { offset: 0 });
+    }
+
+    #[test]
+    fn an_endless_input_stops_at_the_byte_limit() {
+        // A header, then one comment line that never ends.
+        let endless = std::io::Read::chain(
+            &b"t_s,load_n,pressure_mpa,contraction\n#"[..],
+            std::io::repeat(b'x'),
+        );
+        let e = parse_csv("endless", endless).unwrap_err();
+        assert_eq!(e.kind, DataErrorKind::TooLarge);
+    }
+
+    #[test]
+    fn units_are_recognised_in_the_header_and_in_values() {
+        let e = parse("t_s,load_n,pressure_bar,contraction\n0,100,1,0.02\n").unwrap_err();
+        assert!(matches!(e.kind, DataErrorKind::WrongUnit { .. }), "{e}");
+        assert_eq!(e.column.as_deref(), Some("pressure_mpa"));
+        let e = parse("t_s,load_n,pressure_mpa,contraction\n0,100,250,0.02\n").unwrap_err();
+        assert!(e.to_string().contains("looks like kPa"), "{e}");
+        let e = parse("t_s,load_n,pressure_mpa,contraction\n0,100,0.1,15\n").unwrap_err();
+        assert!(e.to_string().contains("looks like per cent"), "{e}");
+        // Beyond any unit: plain impossible.
+        let e = parse("t_s,load_n,pressure_mpa,contraction\n0,100,20000,0.02\n").unwrap_err();
+        assert!(matches!(e.kind, DataErrorKind::Impossible { .. }), "{e}");
+    }
+
+    #[test]
+    fn numbers_are_printed_short() {
+        assert_eq!(num(1e30), "1e30");
+        assert_eq!(num(-2.5e-7), "-2.5e-7");
+        assert_eq!(num(0.25), "0.25");
+        assert_eq!(num(0.0), "0");
+        assert_eq!(num32(0.498_863_34), "0.49886334");
+    }
+
+    fn record(f: impl Fn(usize) -> Sample, n: usize) -> Record {
+        Record::from_samples("r.csv", (0..n).map(f).collect())
+    }
+
+    fn ramp(i: usize) -> Sample {
+        let u = (i % 200) as f64 / 200.0;
+        Sample {
+            t_s: i as f64 * 0.02,
+            load_n: 100.0,
+            pressure_mpa: 0.5 * u,
+            contraction: 0.02 + 0.2 * u,
+        }
+    }
+
+    #[test]
+    fn record_checks_find_time_constant_and_stuck_channels() {
+        assert!(check_record(&record(ramp, 3000), Purpose::Fit).is_ok());
+        let e = check_record(
+            &record(
+                |i| Sample {
+                    t_s: 0.0,
+                    ..ramp(i)
+                },
+                3000,
+            ),
+            Purpose::Simulate,
+        )
+        .unwrap_err();
+        assert_eq!(e.kind, DataErrorKind::TimeNeverAdvances);
+        let e = check_record(
+            &record(
+                |i| Sample {
+                    contraction: 0.1,
+                    ..ramp(i)
+                },
+                3000,
+            ),
+            Purpose::Fit,
+        )
+        .unwrap_err();
+        assert_eq!(e.kind, DataErrorKind::Constant { value: 0.1 });
+        // Simulate needs no varying contraction, but a stuck sensor is one.
+        let e = check_record(
+            &record(
+                |i| Sample {
+                    contraction: 0.1,
+                    ..ramp(i)
+                },
+                3000,
+            ),
+            Purpose::Simulate,
+        )
+        .unwrap_err();
+        assert!(matches!(e.kind, DataErrorKind::Stuck { .. }), "{e}");
+        let stuck = record(
+            |i| {
+                let mut s = ramp(i);
+                if (1000..2000).contains(&i) {
+                    s.contraction = 0.07;
+                }
+                s
+            },
+            3000,
+        );
+        let e = check_record(&stuck, Purpose::Fit).unwrap_err();
+        assert_eq!((e.line, e.column.as_deref()), (1002, Some("contraction")));
+        assert!(
+            matches!(
+                e.kind,
+                DataErrorKind::Stuck {
+                    samples: 1000,
+                    until_line: 2001,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        // A hold (nothing moves) is no fault.
+        let hold = record(
+            |i| {
+                if (1000..2000).contains(&i) {
+                    Sample {
+                        t_s: i as f64 * 0.02,
+                        ..ramp(999)
+                    }
+                } else {
+                    ramp(i)
+                }
+            },
+            3000,
+        );
+        assert!(check_record(&hold, Purpose::Fit).is_ok());
+        let e = check_record(&record(ramp, 60), Purpose::Diagnose).unwrap_err();
+        assert!(matches!(e.kind, DataErrorKind::TooFewSamples(_)));
     }
 }

@@ -105,6 +105,11 @@ fn refused(files: &[(&str, Vec<u8>)], args: &[&str], want: &[&str]) {
     );
     for w in want {
         assert!(stderr.contains(w), "{args:?}: want `{w}` in:\n{stderr}");
+        assert_eq!(
+            stderr.matches(w).count(),
+            1,
+            "{args:?}: `{w}` said more than once:\n{stderr}"
+        );
     }
     assert!(
         !stderr.contains("panicked"),
