@@ -63,12 +63,19 @@ fn protocol(rig: &mut Rig, out: &mut Vec<Sample>) {
     }
 }
 
+/// An isotonic record. Its load column is the hung load, as a test log
+/// records the weight it hangs (the isometric record's is the load cell's
+/// reading: there the force is the measurement).
 fn isotonic(muscle: MuscleParams, seed: u64) -> Vec<Sample> {
     let mut rig = Rig::new(muscle, PneumaticParams::DEFAULT, LOADS_N[0], seed);
     let mut out = Vec::new();
     for load in LOADS_N {
         rig.set_load_n(load);
+        let from = out.len();
         protocol(&mut rig, &mut out);
+        for s in &mut out[from..] {
+            s.load_n = load;
+        }
     }
     out
 }

@@ -168,14 +168,16 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
     Ok(())
 }
 
-/// Pressure–contraction loops of the first held-out block: measured (grey)
+/// Pressure–contraction loops of the longest held-out block: measured (grey)
 /// against the paper's model (left) and the model with the added effects
 /// (right).
 pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
     let s = &record.samples;
+    // The longest held-out block (a noisy load column can cut the blocks
+    // into short pieces; the first may be a single sample).
     let (a, b) = runs(&r.heldout)
-        .first()
-        .copied()
+        .into_iter()
+        .max_by_key(|&(a, b)| b - a)
         .unwrap_or((0, s.len().saturating_sub(1)));
     let idx: Vec<usize> = (a..=b).collect();
     let xmax = idx
