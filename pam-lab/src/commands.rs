@@ -26,10 +26,10 @@ use crate::output::OutputSet;
 use crate::simulate::{self, SimSample};
 
 /// Read `path` and check it for `purpose` ([`data::read_csv`], then
-/// [`data::check_record`]).
+/// [`data::check_record`], and for `diagnose` [`check_load_blocks`]).
 pub fn read_record(path: &Path, purpose: Purpose) -> Result<Record, DataError> {
     let record = data::read_csv(path)?;
-    data::check_record(&record, purpose)?;
+    check(&record, purpose)?;
     Ok(record)
 }
 
@@ -40,8 +40,42 @@ pub fn parse_record<R: Read>(
     purpose: Purpose,
 ) -> Result<Record, DataError> {
     let record = data::parse_csv(source, reader)?;
-    data::check_record(&record, purpose)?;
+    check(&record, purpose)?;
     Ok(record)
+}
+
+fn check(record: &Record, purpose: Purpose) -> Result<(), DataError> {
+    data::check_record(record, purpose)?;
+    if purpose == Purpose::Diagnose {
+        check_load_blocks(record)?;
+    }
+    Ok(())
+}
+
+/// `diagnose` holds out alternate blocks of one load
+/// ([`diagnose::holdout_by_load_block`]); a load column that changes between
+/// most samples (an isometric record's measured force, a noisy load cell)
+/// has no such blocks: refused before the work, with the reason.
+pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
+    let mask = diagnose::holdout_by_load_block(&record.samples);
+    let blocks = 1 + mask.windows(2).filter(|w| w[0] != w[1]).count();
+    let mean_len = record.len() as f64 / blocks as f64;
+    if blocks > 1 && mean_len < 50.0 {
+        return Err(DataError {
+            file: record.source.clone(),
+            line: 0,
+            column: Some("load_n".into()),
+            kind: data::DataErrorKind::TooFewSamples(format!(
+                "diagnose holds out alternate blocks of one load (within 1 N), but the load \
+                 changes so often that the {} samples make {blocks} blocks of {:.1} samples on \
+                 average: it needs an isotonic record that logs its hung load (an isometric \
+                 record's force or a noisy load cell cannot be split so)",
+                record.len(),
+                mean_len
+            )),
+        });
+    }
+    Ok(())
 }
 
 /// A finished fit and the files it makes.

@@ -852,6 +852,18 @@ fn diagnose_one_load_is_said_once() {
 }
 
 #[test]
+fn diagnose_load_that_never_holds() {
+    // A load cell's noise of a few newtons on every sample: no load blocks.
+    diagnose_refuses(
+        csv(edited(|i, f| {
+            let load: f64 = f[1].parse().unwrap();
+            f[1] = format!("{}", load + 3.0 * ((i * 7919 % 13) as f64 / 6.0 - 1.0));
+        })),
+        &["error: bad.csv: column `load_n`: too few samples to identify the model: diagnose holds out alternate blocks of one load (within 1 N)"],
+    );
+}
+
+#[test]
 fn diagnose_output_is_a_file() {
     refused(
         &[("bad.csv", csv(good_csv())), ("diag", csv("a file"))],
