@@ -78,9 +78,13 @@ pub fn fit_plot(
     let classified: usize = counts.values().sum();
     let min_count = (classified / 100).max(20);
     let mut bins: Vec<(i64, usize)> = counts.into_iter().filter(|b| b.1 >= min_count).collect();
-    bins.sort_by_key(|b| std::cmp::Reverse(b.1));
-    bins.truncate(8);
+    // At most 8, spread over the range (an isometric record's forces fill
+    // many bins; the most sampled would all be at the low end).
     bins.sort();
+    if bins.len() > 8 {
+        let n = bins.len();
+        bins = (0..8).map(|k| bins[k * (n - 1) / 7]).collect();
+    }
     let keys: Vec<i64> = bins.iter().map(|b| b.0).collect();
     let thin = (samples.len() / MAX_POINTS).max(1);
     let pmax = f64::from(coeffs.params().points.max_pressure_mpa);
