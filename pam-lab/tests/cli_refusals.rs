@@ -847,7 +847,11 @@ fn diagnose_too_few_samples() {
 fn diagnose_one_load_is_said_once() {
     diagnose_refuses(
         csv(edited(|_, f| f[1] = "100".into())),
-        &["error: base fit: bad.csv (training part): column `load_n`: too few samples"],
+        &[
+            "error: base fit: bad.csv (training part): column `load_n`: too few samples",
+            // The training part keeps the file's line numbers.
+            "(first training line 2)",
+        ],
     );
 }
 
