@@ -81,10 +81,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             // 100 Hz in the CSV (every 10th control period) keeps the files small.
             report::write_trace_csv(&out.join(name), &r.trace, 10)?;
         }
-        report::plot_scenario(&out.join(format!("{}.svg", sc.name)), sc.title, &ff, &pi)?;
+        let series = [
+            report::Series {
+                label: "PI only",
+                run: &pi,
+                colour: report::RUN_COLOURS[0],
+            },
+            report::Series {
+                label: "model FF + PI",
+                run: &ff,
+                colour: report::RUN_COLOURS[1],
+            },
+            report::Series {
+                label: "memory FF + PI",
+                run: &mem,
+                colour: report::RUN_COLOURS[2],
+            },
+        ];
+        report::plot_scenario(
+            &out.join(format!("{}.svg", sc.name)),
+            sc.title,
+            &series,
+            cfg.warmup_s,
+        )?;
         report::plot_loops(
             &out.join(format!("{}_loops.svg", sc.name)),
-            &format!("{}: pressure-contraction, FF + PI (colour: load)", sc.name),
+            &format!("{}: pressure-contraction, model FF + PI", sc.name),
             &ff,
             cfg.warmup_s,
         )?;

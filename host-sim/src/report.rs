@@ -23,145 +23,248 @@ const ORANGE: RGBColor = RGBColor(230, 110, 10);
 const GREY: RGBColor = RGBColor(90, 90, 90);
 const GREEN: RGBColor = RGBColor(44, 160, 44);
 
+/// Axis range of `values` with `pad` (a fraction of the span) either side.
+/// A constant (or nearly constant) signal gets a span of 10 % of its
+/// magnitude, so its ticks read different values (a constant 200 N load
+/// spans 190–210 N, not nine ticks reading 200.0).
 fn range(values: impl Iterator<Item = f64>, pad: f64) -> std::ops::Range<f64> {
-    let (lo, hi) = values.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
-    let span = (hi - lo).max(1e-9);
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    if lo > hi {
+        return 0.0..1.0;
+    }
+    let mid = 0.5 * (lo + hi);
+    let min_span = (0.1 * mid.abs()).max(1e-6);
+    if hi - lo < min_span {
+        return (mid - 0.5 * min_span)..(mid + 0.5 * min_span);
+    }
+    let span = hi - lo;
     (lo - pad * span)..(hi + pad * span)
 }
 
-/// Tracking, pressure and load over time for the feedforward and PI-only runs
-/// of one scenario: three stacked panels.
-pub fn plot_scenario(path: &Path, title: &str, ff: &Run, pi: &Run) -> Result<(), ReportError> {
+type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
+
+/// A legend in its own area beside the chart, so it never covers data.
+fn legend(area: &Area, entries: &[(String, ShapeStyle)]) -> Result<(), ReportError> {
+    for (i, (label, style)) in entries.iter().enumerate() {
+        let y = 30 + 22 * i as i32;
+        area.draw(&PathElement::new(vec![(6, y), (34, y)], *style))?;
+        area.draw(&Text::new(label.clone(), (40, y - 8), ("sans-serif", 14)))?;
+    }
+    Ok(())
+}
+
+/// One closed-loop run as plotted: its label and colour.
+pub struct Series<'a> {
+    /// Legend text (the RMS is added).
+    pub label: &'a str,
+    /// The run.
+    pub run: &'a Run,
+    /// Line colour.
+    pub colour: RGBColor,
+}
+
+/// The colours of the three controllers, as in the summary table's order.
+pub const RUN_COLOURS: [RGBColor; 3] = [ORANGE, BLUE, GREEN];
+
+/// Tracking, tracking error, pressure and load over time for every run of
+/// one scenario: four stacked panels, the legends in a column to the
+/// right. The tracking error has its own panel (on the tracking panel's
+/// 0–0.16 axis an error of 0.005 is invisible); the warm-up, not counted in
+/// the RMS, is shaded.
+pub fn plot_scenario(
+    path: &Path,
+    title: &str,
+    runs: &[Series],
+    warmup_s: f64,
+) -> Result<(), ReportError> {
     ensure_font();
-    let root = SVGBackend::new(path, (1100, 900)).into_drawing_area();
+    let Some(first) = runs.first() else {
+        return Err("no run to plot".into());
+    };
+    let root = SVGBackend::new(path, (1300, 1250)).into_drawing_area();
     root.fill(&WHITE)?;
     let root = root.titled(title, ("sans-serif", 22))?;
-    let panels = root.split_evenly((3, 1));
-    let t_end = ff.trace.last().map(|r| r.t_s).unwrap_or(1.0);
-    let step = (ff.trace.len() / 4000).max(1);
+    let rows = root.split_evenly((4, 1));
+    let t_end = first
+        .run
+        .trace
+        .last()
+        .map(|r| r.t_s)
+        .unwrap_or(1.0)
+        .max(1e-3);
+    let step = (first.run.trace.len() / 4000).max(1);
+    let line = |trace: &[TraceRow], f: &dyn Fn(&TraceRow) -> f64| -> Vec<(f64, f64)> {
+        trace.iter().step_by(step).map(|r| (r.t_s, f(r))).collect()
+    };
+    let all = || runs.iter().flat_map(|s| s.run.trace.iter());
+    let warm = GREY.mix(0.12);
 
     // 1. Tracking.
-    let yr = range(
-        ff.trace
-            .iter()
-            .chain(pi.trace.iter())
-            .flat_map(|r| [r.reference, r.contraction]),
-        0.05,
-    );
-    let mut c = ChartBuilder::on(&panels[0])
+    let (chart_area, legend_area) = rows[0].split_horizontally(1000);
+    let yr = range(all().flat_map(|r| [r.reference, r.contraction]), 0.05);
+    let mut c = ChartBuilder::on(&chart_area)
         .margin(8)
         .x_label_area_size(30)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t_end, yr)?;
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_end, yr.clone())?;
     c.configure_mesh()
         .x_desc("time (s)")
         .y_desc("contraction")
         .draw()?;
-    let line = |trace: &[TraceRow], f: fn(&TraceRow) -> f64| -> Vec<(f64, f64)> {
-        trace.iter().step_by(step).map(|r| (r.t_s, f(r))).collect()
-    };
+    c.draw_series(std::iter::once(Rectangle::new(
+        [(0.0, yr.start), (warmup_s.min(t_end), yr.end)],
+        warm.filled(),
+    )))?;
     c.draw_series(LineSeries::new(
-        line(&ff.trace, |r| r.reference),
-        GREY.stroke_width(2),
-    ))?
-    .label("reference")
-    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREY));
-    c.draw_series(LineSeries::new(line(&pi.trace, |r| r.contraction), ORANGE))?
-        .label(format!("PI only (RMS {:.4})", pi.metrics.rms_error))
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], ORANGE));
-    c.draw_series(LineSeries::new(line(&ff.trace, |r| r.contraction), BLUE))?
-        .label(format!("model FF + PI (RMS {:.4})", ff.metrics.rms_error))
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
+        line(&first.run.trace, &|r| r.reference),
+        GREY.stroke_width(3),
+    ))?;
+    let mut entries = vec![("reference".to_string(), GREY.stroke_width(3))];
+    for s in runs {
+        c.draw_series(LineSeries::new(
+            line(&s.run.trace, &|r| r.contraction),
+            s.colour,
+        ))?;
+        entries.push((s.label.to_string(), s.colour.stroke_width(2)));
+    }
+    entries.push((
+        format!("warm-up ({warmup_s:.0} s, shaded)"),
+        warm.filled().stroke_width(10),
+    ));
+    legend(&legend_area, &entries)?;
 
-    // 2. Pressure.
-    let yr = range(
-        ff.trace
-            .iter()
-            .chain(pi.trace.iter())
-            .flat_map(|r| [r.pressure_mpa, r.feedforward_mpa]),
-        0.05,
-    );
-    let mut c = ChartBuilder::on(&panels[1])
+    // 2. Tracking error, on its own scale (after the warm-up).
+    let (chart_area, legend_area) = rows[1].split_horizontally(1000);
+    let emax = all()
+        .filter(|r| r.t_s >= warmup_s)
+        .map(|r| (r.contraction - r.reference).abs())
+        .fold(1e-4, f64::max)
+        * 1.1;
+    let mut c = ChartBuilder::on(&chart_area)
         .margin(8)
         .x_label_area_size(30)
-        .y_label_area_size(60)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_end, -emax..emax)?;
+    c.configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("tracking error")
+        .y_label_formatter(&|v| format!("{v:.4}"))
+        .draw()?;
+    c.draw_series(std::iter::once(Rectangle::new(
+        [(0.0, -emax), (warmup_s.min(t_end), emax)],
+        warm.filled(),
+    )))?;
+    let mut entries = Vec::new();
+    for s in runs {
+        let pts: Vec<(f64, f64)> = line(&s.run.trace, &|r| {
+            (r.contraction - r.reference).clamp(-emax, emax)
+        });
+        c.draw_series(LineSeries::new(pts, s.colour))?;
+        entries.push((
+            format!("{}: RMS {:.4}", s.label, s.run.metrics.rms_error),
+            s.colour.stroke_width(2),
+        ));
+    }
+    entries.push(("contraction − reference".to_string(), WHITE.stroke_width(0)));
+    legend(&legend_area, &entries)?;
+
+    // 3. Pressure.
+    let (chart_area, legend_area) = rows[2].split_horizontally(1000);
+    let yr = range(
+        all().flat_map(|r| [r.pressure_mpa, r.feedforward_mpa]),
+        0.05,
+    );
+    let mut c = ChartBuilder::on(&chart_area)
+        .margin(8)
+        .x_label_area_size(30)
+        .y_label_area_size(70)
         .build_cartesian_2d(0.0..t_end, yr)?;
     c.configure_mesh()
         .x_desc("time (s)")
         .y_desc("pressure (MPa)")
         .draw()?;
-    c.draw_series(LineSeries::new(line(&pi.trace, |r| r.pressure_mpa), ORANGE))?
-        .label("chamber, PI only")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], ORANGE));
-    c.draw_series(LineSeries::new(line(&ff.trace, |r| r.pressure_mpa), BLUE))?
-        .label("chamber, FF + PI")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    c.draw_series(LineSeries::new(
-        line(&ff.trace, |r| r.feedforward_mpa),
-        GREEN,
-    ))?
-    .label("feedforward (model)")
-    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
+    let mut entries = Vec::new();
+    for s in runs {
+        c.draw_series(LineSeries::new(
+            line(&s.run.trace, &|r| r.pressure_mpa),
+            s.colour,
+        ))?;
+        entries.push((format!("chamber, {}", s.label), s.colour.stroke_width(2)));
+    }
+    for s in runs
+        .iter()
+        .filter(|s| s.run.trace.iter().any(|r| r.feedforward_mpa != 0.0))
+    {
+        let dashed = s.colour.mix(0.5);
+        c.draw_series(LineSeries::new(
+            line(&s.run.trace, &|r| r.feedforward_mpa),
+            dashed.stroke_width(1),
+        ))?;
+        entries.push((format!("feedforward, {}", s.label), dashed.stroke_width(1)));
+    }
+    legend(&legend_area, &entries)?;
 
-    // 3. Load.
-    let yr = range(
-        ff.trace.iter().flat_map(|r| [r.load_n, r.model_load_n]),
-        0.08,
-    );
-    let mut c = ChartBuilder::on(&panels[2])
+    // 4. Load.
+    let (chart_area, legend_area) = rows[3].split_horizontally(1000);
+    let yr = range(all().flat_map(|r| [r.load_n, r.model_load_n]), 0.08);
+    let mut c = ChartBuilder::on(&chart_area)
         .margin(8)
         .x_label_area_size(30)
-        .y_label_area_size(60)
+        .y_label_area_size(70)
         .build_cartesian_2d(0.0..t_end, yr)?;
     c.configure_mesh()
         .x_desc("time (s)")
         .y_desc("load (N)")
         .draw()?;
     c.draw_series(LineSeries::new(
-        line(&ff.trace, |r| r.load_n),
-        GREY.stroke_width(2),
-    ))?
-    .label("load on the rig")
-    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREY));
-    c.draw_series(LineSeries::new(line(&ff.trace, |r| r.model_load_n), BLUE))?
-        .label("controller's active model")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
+        line(&first.run.trace, &|r| r.load_n),
+        GREY.stroke_width(3),
+    ))?;
+    let mut entries = vec![("load on the rig".to_string(), GREY.stroke_width(3))];
+    for s in runs
+        .iter()
+        .filter(|s| s.run.trace.iter().any(|r| r.feedforward_mpa != 0.0))
+    {
+        c.draw_series(LineSeries::new(
+            line(&s.run.trace, &|r| r.model_load_n),
+            s.colour,
+        ))?;
+        entries.push((
+            format!("active model, {}", s.label),
+            s.colour.stroke_width(2),
+        ));
+    }
+    legend(&legend_area, &entries)?;
     root.present()?;
     Ok(())
 }
 
+/// Colour of a load on the loops plot's scale.
+fn load_colour(u: f64) -> RGBColor {
+    let u = u.clamp(0.0, 1.0);
+    RGBColor((40.0 + 200.0 * u) as u8, 80, (220.0 - 180.0 * u) as u8)
+}
+
 /// Pressure–contraction loops of a closed-loop run (true chamber pressure
-/// against true contraction after the warm-up), like the paper's Figs. 6–8.
+/// against true contraction after the warm-up), like the paper's Figs. 6–8,
+/// coloured by load with a colour bar beside the chart.
 pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<(), ReportError> {
     ensure_font();
-    let root = SVGBackend::new(path, (800, 650)).into_drawing_area();
+    let root = SVGBackend::new(path, (900, 650)).into_drawing_area();
     root.fill(&WHITE)?;
-    let pts: Vec<(f64, f64)> = run
+    let root = root.titled(title, ("sans-serif", 20))?;
+    let (chart_area, bar_area) = root.split_horizontally(770);
+    let kept: Vec<&TraceRow> = run
         .trace
         .iter()
         .filter(|r| r.t_s >= warmup_s)
         .step_by(5)
-        .map(|r| (r.contraction, r.pressure_mpa))
         .collect();
-    let xr = range(pts.iter().map(|p| p.0), 0.05);
-    let yr = range(pts.iter().map(|p| p.1), 0.05);
-    let mut c = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
+    let xr = range(kept.iter().map(|r| r.contraction), 0.05);
+    let yr = range(kept.iter().map(|r| r.pressure_mpa), 0.05);
+    let mut c = ChartBuilder::on(&chart_area)
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(60)
@@ -170,26 +273,61 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
         .x_desc("contraction")
         .y_desc("pressure (MPa)")
         .draw()?;
-    // Colour by load so each load's loop can be told apart.
-    let loads: Vec<f64> = run
-        .trace
-        .iter()
-        .filter(|r| r.t_s >= warmup_s)
-        .step_by(5)
-        .map(|r| r.load_n)
-        .collect();
-    let (lmin, lmax) = loads
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
-    c.draw_series(pts.iter().zip(loads.iter()).map(|(&p, &l)| {
-        let u = if lmax > lmin {
+    let (lmin, lmax) = kept.iter().fold((f64::MAX, f64::MIN), |(a, b), r| {
+        (a.min(r.load_n), b.max(r.load_n))
+    });
+    let u = |l: f64| {
+        if lmax > lmin {
             (l - lmin) / (lmax - lmin)
         } else {
-            0.0
-        };
-        let col = RGBColor((40.0 + 200.0 * u) as u8, 80, (220.0 - 180.0 * u) as u8);
-        Circle::new(p, 1, col.filled())
+            0.5
+        }
+    };
+    c.draw_series(kept.iter().map(|r| {
+        Circle::new(
+            (r.contraction, r.pressure_mpa),
+            1,
+            load_colour(u(r.load_n)).filled(),
+        )
     }))?;
+    // Colour bar: the load scale.
+    bar_area.draw(&Text::new("load (N)", (10, 20), ("sans-serif", 15)))?;
+    let (top, bottom) = (50, 560);
+    if lmax > lmin {
+        let steps = 100;
+        for k in 0..steps {
+            let y0 = bottom - (bottom - top) * (k + 1) / steps;
+            let y1 = bottom - (bottom - top) * k / steps;
+            let col = load_colour(k as f64 / (steps - 1) as f64);
+            bar_area.draw(&Rectangle::new([(14, y0), (40, y1)], col.filled()))?;
+        }
+        bar_area.draw(&Rectangle::new(
+            [(14, top), (40, bottom)],
+            BLACK.stroke_width(1),
+        ))?;
+        for k in 0..=4 {
+            let v = lmin + (lmax - lmin) * k as f64 / 4.0;
+            let y = bottom - (bottom - top) * k / 4;
+            bar_area.draw(&PathElement::new(vec![(40, y), (46, y)], BLACK))?;
+            bar_area.draw(&Text::new(
+                format!("{v:.0}"),
+                (50, y - 7),
+                ("sans-serif", 14),
+            ))?;
+        }
+    } else if lmax >= lmin {
+        // One load: one colour, no scale to read.
+        bar_area.draw(&Rectangle::new(
+            [(14, top), (40, top + 26)],
+            load_colour(0.5).filled(),
+        ))?;
+        bar_area.draw(&Text::new(
+            format!("{lmin:.0} N"),
+            (46, top + 5),
+            ("sans-serif", 14),
+        ))?;
+        bar_area.draw(&Text::new("(constant)", (14, top + 36), ("sans-serif", 14)))?;
+    }
     root.present()?;
     Ok(())
 }

@@ -35,7 +35,6 @@
 //!    its parameters or [`DiagnoseConfig::max_effects`] are in. No candidate
 //!    earning it is the answer `none`.
 
-use std::io::Write as _;
 use std::path::Path;
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
@@ -938,14 +937,18 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     let denoised = denoise_pressure(samples, PRESSURE_MEDIAN_HALF_WIDTH);
     let samples = &denoised;
     let heldout = holdout_by_load_block(samples);
-    let train: Vec<Sample> = record
-        .samples
-        .iter()
-        .zip(&heldout)
-        .filter(|(_, h)| !**h)
-        .map(|(s, _)| *s)
-        .collect();
-    let train_record = Record::from_samples(format!("{} (training part)", record.source), train);
+    let keep = |i: &usize| !heldout[*i];
+    let train_record = Record {
+        source: format!("{} (training part)", record.source),
+        samples: (0..samples.len())
+            .filter(keep)
+            .map(|i| record.samples[i])
+            .collect(),
+        lines: (0..samples.len())
+            .filter(keep)
+            .map(|i| record.line(i))
+            .collect(),
+    };
     let mut fit_cfg = cfg.fit.clone();
     fit_cfg.holdout = Holdout::None;
     let fit = crate::fit::fit(&train_record, &fit_cfg)?;
@@ -1370,31 +1373,12 @@ pub fn summary(r: &DiagnoseReport) -> String {
     s
 }
 
-/// Write `report.json`, `residual.png` and `loops.png` into `dir`.
+/// Write `report.json`, `residual.png` and `loops.png` into `dir`, all or
+/// none ([`crate::output::OutputSet`]).
 pub fn write_outputs(r: &DiagnoseReport, record: &Record, dir: &Path) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    let json = serde_json::to_string_pretty(r)?;
-    let mut f = std::fs::File::create(dir.join("report.json"))?;
-    f.write_all(json.as_bytes())?;
-    f.write_all(b"\n")?;
-    crate::diagnose_plot::residual_plot(r, record, &dir.join("residual.png"))?;
-    crate::diagnose_plot::loops_plot(r, record, &dir.join("loops.png"))?;
-    Ok(())
-}
-
-/// `pam-lab diagnose DATA --out DIR`: read, diagnose, write the outputs and
-/// print the summary.
-pub fn run_cli(data: &Path, out: &Path) -> anyhow::Result<()> {
-    let record = crate::data::read_csv(data)?;
-    let report = diagnose(&record, &DiagnoseConfig::default())?;
-    write_outputs(&report, &record, out)?;
-    print!("{}", summary(&report));
-    println!(
-        "wrote {}, {}, {}",
-        out.join("report.json").display(),
-        out.join("residual.png").display(),
-        out.join("loops.png").display()
-    );
+    let mut set = crate::output::OutputSet::new();
+    crate::commands::stage_diagnose(&mut set, dir, r, record, true)?;
+    set.commit()?;
     Ok(())
 }
 

@@ -73,21 +73,49 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d(t0..t1, -lim..lim)?;
+        // Below the data: one strip per regime; above it: room for the legend.
+        .build_cartesian_2d(t0..t1, (-1.32 * lim)..(1.6 * lim))?;
     chart
         .configure_mesh()
         .x_desc("time, s")
         .y_desc("measured - predicted contraction")
         .light_line_style(WHITE)
+        // Ticks only where the residual is drawn, not on the strips or legend room.
+        .y_label_formatter(&|v| {
+            if v.abs() <= lim * 1.001 {
+                format!("{v:.3}")
+            } else {
+                String::new()
+            }
+        })
         .draw()?;
     let t = |i: usize| s[i].t_s;
-    // Held-out blocks.
-    chart.draw_series(runs(&r.heldout).into_iter().map(|(a, b)| {
-        Rectangle::new(
-            [(t(a), -lim), (t(b), lim)],
-            RGBColor(235, 235, 235).filled(),
-        )
-    }))?;
+    // Held-out blocks, labelled on the plot and in the legend.
+    let grey = RGBColor(228, 228, 228);
+    chart
+        .draw_series(runs(&r.heldout).into_iter().map(|(a, b)| {
+            Rectangle::new([(t(a), -1.32 * lim), (t(b), 1.02 * lim)], grey.filled())
+        }))?
+        .label("held-out block (grey band)")
+        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], grey.filled()));
+    // The words on each band only where they fit (wide blocks); the legend
+    // names the grey band either way.
+    chart.draw_series(
+        runs(&r.heldout)
+            .into_iter()
+            .filter(|&(a, b)| t(b) - t(a) > 0.06 * (t1 - t0))
+            .map(|(a, _)| {
+                Text::new(
+                    "held out",
+                    (t(a), 1.0 * lim),
+                    ("sans-serif", 14).into_font().color(&RGBColor(90, 90, 90)),
+                )
+            }),
+    )?;
+    chart.draw_series(std::iter::once(PathElement::new(
+        vec![(t0, -1.02 * lim), (t1, -1.02 * lim)],
+        BLACK.mix(0.4),
+    )))?;
     // Regime bands, each on its own strip at the bottom.
     let bands: [(&str, &Vec<bool>, RGBColor); 4] = [
         (
@@ -104,8 +132,8 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
         ),
     ];
     for (k, (name, mask, color)) in bands.iter().enumerate() {
-        let y1 = -lim + lim * 0.05 * (k as f64 + 1.0);
-        let y0 = y1 - lim * 0.04;
+        let y1 = -1.04 * lim - lim * 0.07 * k as f64;
+        let y0 = y1 - lim * 0.05;
         let color = *color;
         chart
             .draw_series(
@@ -113,7 +141,7 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
                     .into_iter()
                     .map(move |(a, b)| Rectangle::new([(t(a), y0), (t(b), y1)], color.filled())),
             )?
-            .label(*name)
+            .label(format!("strip {}: {name}", k + 1))
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], color.filled()));
     }
     chart
@@ -140,14 +168,16 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
     Ok(())
 }
 
-/// Pressure–contraction loops of the first held-out block: measured (grey)
+/// Pressure–contraction loops of the longest held-out block: measured (grey)
 /// against the paper's model (left) and the model with the added effects
 /// (right).
 pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
     let s = &record.samples;
+    // The longest held-out block (a noisy load column can cut the blocks
+    // into short pieces; the first may be a single sample).
     let (a, b) = runs(&r.heldout)
-        .first()
-        .copied()
+        .into_iter()
+        .max_by_key(|&(a, b)| b - a)
         .unwrap_or((0, s.len().saturating_sub(1)));
     let idx: Vec<usize> = (a..=b).collect();
     let xmax = idx
@@ -205,7 +235,7 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
             .draw_series(idx.iter().map(|&i| {
                 Circle::new(
                     (s[i].pressure_mpa, s[i].contraction),
-                    1,
+                    2,
                     RGBColor(150, 150, 150).filled(),
                 )
             }))?

@@ -24,13 +24,14 @@
 //! ```
 #![warn(missing_docs)]
 
-pub mod atomic;
+pub mod commands;
 pub mod data;
 pub mod diagnose;
 pub mod diagnose_plot;
 pub mod fit;
 pub mod lsq;
 pub mod model_file;
+pub mod output;
 pub mod plot;
 pub mod simulate;
 pub mod split;

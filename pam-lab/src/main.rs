@@ -1,80 +1,134 @@
 //! `pam-lab`: identify the PAM hysteresis model from test-rig measurements,
 //! simulate it, and export the firmware's coefficients. See the crate docs
-//! and `pam-lab/README.md`.
+//! and `pam-lab/README.md` (its table of options is this file's `Cli`).
+//!
+//! Every command runs the same way: options checked, the record read and
+//! checked, the work, then every output written at once
+//! ([`pam_lab::output::OutputSet`]) and the report printed. Any refusal is
+//! one `error:` line on stderr and exit code 1; nothing is written.
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use anyhow::Result;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
 use pam_core::TrackerConfig;
+use pam_lab::commands;
+use pam_lab::data::Purpose;
+use pam_lab::diagnose::DiagnoseConfig;
 use pam_lab::fit::{FitConfig, Holdout, Progress, TestKind};
-use pam_lab::model_file::{FitSummary, ModelFile};
+use pam_lab::output::OutputSet;
 use pam_lab::split::SplitConfig;
-use pam_lab::{atomic, data, fit, model_file, plot, simulate};
 
 #[derive(Parser)]
 #[command(
     name = "pam-lab",
     version,
-    about = "Identify, simulate and export the PAM hysteresis model"
+    about = "Identify, simulate and export the PAM hysteresis model",
+    args_conflicts_with_subcommands = true
 )]
 struct Cli {
     #[command(subcommand)]
     command: Command,
 }
 
+/// Options every command has.
+#[derive(Args, Clone, Copy)]
+struct Common {
+    /// No progress and no report; only warnings and errors (stderr).
+    #[arg(short, long)]
+    quiet: bool,
+    /// Progress on stderr: `auto` (a bar on a terminal, nothing when
+    /// redirected), `always` (plain lines when redirected), `never`.
+    #[arg(long, value_enum, default_value_t = ProgressMode::Auto)]
+    progress: ProgressMode,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ProgressMode {
+    Auto,
+    Always,
+    Never,
+}
+
+/// The fit's options, shared by `fit` and `diagnose` (diagnose's base fit).
+#[derive(Args)]
+struct FitOptions {
+    /// Maximum operating pressure Pmax, MPa (default: measured from the record).
+    #[arg(long, value_name = "MPA")]
+    pmax: Option<f64>,
+    /// Load step of the regression and growth factors, N.
+    #[arg(long, default_value_t = 100.0, value_name = "N")]
+    load_step: f64,
+    /// Branch-split deadband on the pressure, MPa (default: 6 × the estimated pressure noise).
+    #[arg(long, value_name = "MPA")]
+    deadband: Option<f64>,
+    /// Width of the load bins for grouping and reports, N.
+    #[arg(long, default_value_t = 25.0, value_name = "N")]
+    load_bin: f64,
+    /// Fewest training samples per branch in a load bin.
+    #[arg(long, default_value_t = 50, value_name = "N")]
+    min_samples: usize,
+    /// Kind of test: `isotonic`, `isometric` or `mixed` (default: detected from the record).
+    #[arg(long, value_name = "KIND")]
+    test: Option<TestKind>,
+}
+
+impl FitOptions {
+    fn config(&self, holdout: Holdout) -> FitConfig {
+        FitConfig {
+            max_pressure_mpa: self.pmax,
+            load_step_n: self.load_step,
+            holdout,
+            split: SplitConfig {
+                deadband_mpa: self.deadband,
+                ..SplitConfig::default()
+            },
+            load_bin_n: self.load_bin,
+            min_samples_per_group: self.min_samples,
+            test: self.test,
+            ..FitConfig::default()
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Fit the paper's model to a record and write model.json, model.blob,
-    /// model_params.rs and fit.png.
+    /// model_params.rs and fit.png into the output directory.
+    #[command(allow_negative_numbers = true)]
     Fit {
         /// Measurement CSV (`t_s,load_n,pressure_mpa,contraction`).
         data: PathBuf,
         /// Output directory (created if missing).
-        #[arg(short, long, default_value = "pam-lab-fit")]
-        out_dir: PathBuf,
-        /// Maximum operating pressure Pmax, MPa (default: measured from the record).
-        #[arg(long, value_name = "MPA")]
-        pmax: Option<f64>,
-        /// Load step of the regression and growth factors, N.
-        #[arg(long, default_value_t = 100.0, value_name = "N")]
-        load_step: f64,
+        #[arg(short, long, default_value = "pam-lab-fit", value_name = "DIR")]
+        out: PathBuf,
+        #[command(flatten)]
+        fit: FitOptions,
         /// Held-out part: `every:K` (every K-th cycle), `tail:F` (last fraction F) or `none`.
         #[arg(long, default_value = "every:4")]
         holdout: Holdout,
-        /// Branch-split deadband on the pressure, MPa (default: 6 × the estimated pressure noise).
-        #[arg(long, value_name = "MPA")]
-        deadband: Option<f64>,
-        /// Width of the load bins for grouping and reports, N.
-        #[arg(long, default_value_t = 25.0, value_name = "N")]
-        load_bin: f64,
-        /// Fewest training samples per branch in a load bin.
-        #[arg(long, default_value_t = 50)]
-        min_samples: usize,
-        /// Kind of test: `isotonic`, `isometric` or `mixed` (default: detected from the record).
-        #[arg(long, value_name = "KIND")]
-        test: Option<TestKind>,
         /// Do not draw fit.png.
         #[arg(long)]
         no_plot: bool,
-        /// No progress on stderr.
-        #[arg(short, long)]
-        quiet: bool,
+        #[command(flatten)]
+        common: Common,
     },
     /// Drive a model with a record's measured pressure and load; write the
-    /// predicted and measured contraction and the error.
+    /// predicted and measured contraction and the error as CSV.
+    #[command(allow_negative_numbers = true)]
     Simulate {
         /// Model: a model.json or a model.blob.
         model: PathBuf,
         /// Measurement CSV.
         data: PathBuf,
-        /// Output CSV.
-        #[arg(short, long, default_value = "simulated.csv")]
+        /// Output CSV (`-` for stdout).
+        #[arg(short, long, default_value = "simulated.csv", value_name = "FILE")]
         out: PathBuf,
-        /// Plot (PNG) of measured and predicted contraction and the error.
+        /// Also draw measured and predicted contraction and the error (PNG).
         #[arg(long, value_name = "PNG")]
         plot: Option<PathBuf>,
         /// Tracker direction deadband on the pressure, MPa.
@@ -84,52 +138,54 @@ enum Command {
         #[arg(long, default_value_t = TrackerConfig::DEFAULT_PRESSURE.load_threshold_n, value_name = "N")]
         load_threshold: f32,
         /// Samples a load change must persist before the model switches.
-        #[arg(long, default_value_t = TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples)]
+        #[arg(long, default_value_t = TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples, value_name = "N")]
         debounce: u16,
+        #[command(flatten)]
+        common: Common,
     },
     /// Find where the model and a record disagree, name the missing effect,
     /// add it, and report the held-out error before and after (report.json,
     /// residual.png, loops.png; see pam-lab/DIAGNOSE.md).
+    #[command(allow_negative_numbers = true)]
     Diagnose {
         /// Measurement CSV.
         data: PathBuf,
         /// Output directory (created if missing).
-        #[arg(long, default_value = "pam-lab-diagnose")]
+        #[arg(short, long, default_value = "pam-lab-diagnose", value_name = "DIR")]
         out: PathBuf,
+        #[command(flatten)]
+        fit: FitOptions,
+        /// Do not draw residual.png and loops.png.
+        #[arg(long)]
+        no_plot: bool,
+        #[command(flatten)]
+        common: Common,
     },
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                let _ = e.print();
+                return ExitCode::SUCCESS;
+            }
+            // A usage error is a refusal like any other: exit code 1.
+            let _ = e.print();
+            return ExitCode::FAILURE;
+        }
+    };
     let result = match cli.command {
         Command::Fit {
             data,
-            out_dir,
-            pmax,
-            load_step,
+            out,
+            fit,
             holdout,
-            deadband,
-            load_bin,
-            min_samples,
-            test,
             no_plot,
-            quiet,
-        } => {
-            let cfg = FitConfig {
-                max_pressure_mpa: pmax,
-                load_step_n: load_step,
-                holdout,
-                split: SplitConfig {
-                    deadband_mpa: deadband,
-                    ..SplitConfig::default()
-                },
-                load_bin_n: load_bin,
-                min_samples_per_group: min_samples,
-                test,
-                ..FitConfig::default()
-            };
-            run_fit(&data, &out_dir, &cfg, !no_plot, !quiet)
-        }
+            common,
+        } => run_fit(&data, &out, &fit.config(holdout), !no_plot, common),
         Command::Simulate {
             model,
             data,
@@ -138,216 +194,272 @@ fn main() -> ExitCode {
             deadband,
             load_threshold,
             debounce,
+            common,
         } => {
             let config = TrackerConfig {
                 direction_deadband: deadband,
                 load_threshold_n: load_threshold,
                 load_debounce_samples: debounce,
             };
-            run_simulate(&model, &data, &out, plot.as_deref(), config)
+            run_simulate(&model, &data, &out, plot.as_deref(), config, common)
         }
-        Command::Diagnose { data, out } => pam_lab::diagnose::run_cli(&data, &out),
+        Command::Diagnose {
+            data,
+            out,
+            fit,
+            no_plot,
+            common,
+        } => {
+            let cfg = DiagnoseConfig {
+                fit: fit.config(Holdout::None),
+                ..DiagnoseConfig::default()
+            };
+            run_diagnose(&data, &out, &cfg, !no_plot, common)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            let _ = writeln!(std::io::stderr(), "error: {}", message(&err));
             ExitCode::FAILURE
         }
     }
 }
 
-fn run_fit(
-    data_path: &Path,
-    out_dir: &Path,
-    cfg: &FitConfig,
-    draw: bool,
-    verbose: bool,
-) -> Result<()> {
-    // Every setting is checked before the record is read.
-    cfg.validate()?;
-    let start = Instant::now();
-    let tty = std::io::stderr().is_terminal();
-    let say = |msg: &str| {
-        if verbose {
-            eprintln!("[{:6.2} s] {msg}", start.elapsed().as_secs_f64());
-        }
-    };
-    say(&format!("reading {}", data_path.display()));
-    let record = data::read_csv(data_path)?;
-    say(&format!("{} samples", record.len()));
-    let progress = |p: Progress| {
-        if !verbose {
-            return;
-        }
-        match p {
-            Progress::Stage(s) => {
-                if tty {
-                    eprint!("\r\x1b[K");
-                }
-                eprintln!("[{:6.2} s] {s}", start.elapsed().as_secs_f64());
+/// The error and its causes, each said once: a cause whose text its
+/// wrapper already contains (`base fit: X` over `X`) is not repeated.
+fn message(err: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
             }
-            Progress::Evaluation { count, cost } => {
-                if tty {
-                    eprint!("\r\x1b[K  evaluation {count}, cost {cost:.6e}");
-                    let _ = std::io::stderr().flush();
-                }
-            }
+            out.push_str(&text);
         }
-    };
-    let report = fit::fit_with_progress(&record, cfg, &progress)?;
-    say(&format!(
-        "fit done: {} residual evaluations, {}",
-        report.evaluations, report.termination
-    ));
+    }
+    out
+}
 
-    std::fs::create_dir_all(out_dir)
-        .with_context(|| format!("cannot create {}", out_dir.display()))?;
-    let n_train = (0..record.len())
-        .filter(|&i| report.split.branch[i].is_some() && !report.heldout[i])
-        .count();
-    let any_heldout = report.heldout.iter().any(|h| *h);
-    let summary = FitSummary {
-        source: record.source.clone(),
-        samples: record.len(),
-        training_samples: n_train,
-        holdout: report.holdout.to_string(),
-        max_pressure_source: format!("{:?}", report.pmax_source).to_lowercase(),
-        pressure_noise_mpa: report.split.pressure_noise_mpa,
-        contraction_noise: report.split.contraction_noise,
-        heldout_errors: any_heldout.then(|| report.test.clone()),
-    };
-    let model = ModelFile::new(report.params, Some(summary));
-    let json = out_dir.join("model.json");
-    atomic::write_bytes(&json, model.to_json().as_bytes())?;
-    let blob = out_dir.join("model.blob");
-    atomic::write_bytes(&blob, &pam_core::blob::encode(&report.params))?;
-    let rs = out_dir.join("model_params.rs");
-    let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);
-    atomic::write_bytes(
-        &rs,
-        model_file::rust_source(&report.params, &origin).as_bytes(),
-    )?;
-    let mut written = vec![json, blob, rs];
-    if draw {
-        say("plotting");
-        let png = out_dir.join("fit.png");
-        plot::fit_plot(
-            &png,
-            &record,
-            &report.split,
-            &report.heldout,
-            &report.coeffs,
-            cfg.load_bin_n,
-        )?;
-        written.push(png);
+/// Stdout closed early (`pam-lab … | head`): not an error of ours.
+fn is_broken_pipe(err: &anyhow::Error) -> bool {
+    err.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// Print to stdout, returning (not panicking on) a closed pipe.
+fn print_out(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())?;
+    out.flush()?;
+    Ok(())
+}
+
+fn warn(text: &str) {
+    let _ = writeln!(std::io::stderr(), "warning: {text}");
+}
+
+/// Progress on stderr: an `indicatif` spinner on a terminal, plain lines
+/// when asked for and redirected, nothing otherwise.
+struct Reporter {
+    bar: Option<ProgressBar>,
+    lines: bool,
+    start: Instant,
+}
+
+impl Reporter {
+    fn new(common: Common) -> Reporter {
+        let tty = std::io::stderr().is_terminal();
+        let on = !common.quiet && common.progress != ProgressMode::Never;
+        let bar = (on && tty).then(|| {
+            let b = ProgressBar::new_spinner();
+            b.set_style(
+                ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+            );
+            b.enable_steady_tick(Duration::from_millis(120));
+            b
+        });
+        Reporter {
+            bar,
+            lines: on && !tty && common.progress == ProgressMode::Always,
+            start: Instant::now(),
+        }
     }
 
-    let p = &report.params;
-    let mut out = std::io::stdout().lock();
-    writeln!(
-        out,
-        "model of {} ({} samples, {} for training, held out: {})",
-        record.source,
-        record.len(),
-        n_train,
-        report.holdout
-    )?;
-    writeln!(
-        out,
-        "  loads {}..{} N, step {} N; Pmax {} MPa ({:?})",
-        p.min_load_n, p.max_load_n, p.load_step_n, p.points.max_pressure_mpa, report.pmax_source
-    )?;
-    writeln!(
-        out,
-        "  R1 {:.5}  Rx1 {:.5}  tangency ({:.5}, {:.5} MPa)  inflection ({:.5}, {:.5} MPa)",
-        p.points.root_contraction,
-        p.points.max_contraction,
-        p.points.tangency.contraction,
-        p.points.tangency.pressure_mpa,
-        p.points.inflection.contraction,
-        p.points.inflection.pressure_mpa
-    )?;
-    writeln!(
-        out,
-        "  RG_L {:.6}  RG_U {:.6}  GR_c {:.5}  be {:.5} MPa",
-        p.root_regression_per_step,
-        p.max_regression_per_step,
-        p.c_growth_per_step,
-        p.ellipse_height_mpa
-    )?;
-    writeln!(
-        out,
-        "  noise estimate: pressure {:.5} MPa, contraction {:.5}",
-        report.split.pressure_noise_mpa, report.split.contraction_noise
-    )?;
-    writeln!(
-        out,
-        "  test: {} ({})",
-        report.test_kind,
-        if cfg.test.is_some() {
-            "given"
-        } else {
-            "detected"
+    fn stage(&self, msg: &str) {
+        if let Some(b) = &self.bar {
+            b.set_message(msg.to_string());
+        } else if self.lines {
+            let _ = writeln!(
+                std::io::stderr(),
+                "[{:6.2} s] {msg}",
+                self.start.elapsed().as_secs_f64()
+            );
         }
-    )?;
-    writeln!(out, "  shape: {}", report.shape.statement())?;
-    writeln!(
-        out,
-        "{} errors (model − measured; pressure by the forward model, contraction by the inverse):",
-        if any_heldout {
-            "held-out"
-        } else {
-            "training (nothing held out)"
+    }
+
+    /// A detail that changes often: shown on the bar only.
+    fn detail(&self, msg: String) {
+        if let Some(b) = &self.bar {
+            b.set_message(msg);
         }
-    )?;
-    write!(out, "{}", report.test.to_text())?;
-    writeln!(
+    }
+
+    fn done(&self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
+}
+
+impl Drop for Reporter {
+    fn drop(&mut self) {
+        self.done();
+    }
+}
+
+fn wrote(set_targets: &[PathBuf]) -> String {
+    set_targets
+        .iter()
+        .map(|p| format!("wrote {}\n", p.display()))
+        .collect()
+}
+
+fn run_fit(data: &Path, out: &Path, cfg: &FitConfig, draw: bool, common: Common) -> Result<()> {
+    // Options and the output directory before the record is read.
+    cfg.validate()?;
+    let mut set = OutputSet::new();
+    set.into_dir(out)?;
+    set.check_in_dir(
         out,
-        "  held-out pressure error RMS {:.5} MPa, contraction error RMS {:.6} ({} error is primary for an {} test)",
-        report.test.total.pressure_rms_mpa,
-        report.test.total.contraction_rms,
-        if report.test_kind == fit::TestKind::Isometric { "the pressure" } else { "the contraction" },
-        report.test_kind
+        &["model.json", "model.blob", "model_params.rs", "fit.png"][..if draw { 4 } else { 3 }],
     )?;
-    for w in &written {
-        writeln!(out, "wrote {}", w.display())?;
+    let rep = Reporter::new(common);
+    rep.stage(&format!("reading {}", data.display()));
+    let record = commands::read_record(data, Purpose::Fit)?;
+    rep.stage(&format!("{} samples", record.len()));
+    let stage = std::sync::Mutex::new("");
+    let progress = |p: Progress| match p {
+        Progress::Stage(s) => {
+            if let Ok(mut g) = stage.lock() {
+                *g = s;
+            }
+            rep.stage(s);
+        }
+        Progress::Evaluation { count, cost } => {
+            let s = stage.lock().map(|g| *g).unwrap_or("");
+            rep.detail(format!("{s}: evaluation {count}, cost {cost:.4e}"));
+        }
+    };
+    let outcome = commands::fit_record(&record, cfg, &progress)?;
+    if draw {
+        rep.stage("plotting");
+    }
+    commands::stage_fit(&mut set, out, &outcome, &record, cfg, draw)?;
+    let written = set.commit()?;
+    rep.done();
+    if !common.quiet {
+        print_out(&(commands::fit_text(&outcome, &record, cfg) + &wrote(&written)))?;
     }
     Ok(())
 }
 
 fn run_simulate(
     model: &Path,
-    data_path: &Path,
+    data: &Path,
     out: &Path,
-    plot_path: Option<&Path>,
+    plot: Option<&Path>,
     config: TrackerConfig,
+    common: Common,
 ) -> Result<()> {
-    let coeffs = model_file::load(model)?;
-    config
-        .validate()
-        .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
-    let record = data::read_csv(data_path)?;
-    let sim = simulate::simulate(&coeffs, config, &record.samples);
-    atomic::write_with(out, |w| simulate::write_csv(w, &sim).map_err(Into::into))?;
-    if let Some(p) = plot_path {
-        plot::simulate_plot(p, &record.source, &sim)?;
+    config.validate().map_err(|e| {
+        let option = match e {
+            pam_core::Error::OutOfRange("direction_deadband", _) => "--deadband",
+            pam_core::Error::OutOfRange("load_threshold_n", _) => "--load-threshold",
+            pam_core::Error::OutOfRange("load_debounce_samples", _) => "--debounce",
+            _ => "tracker settings",
+        };
+        anyhow::anyhow!("invalid setting `{option}`: {e}")
+    })?;
+    let to_stdout = out == Path::new("-");
+    let mut set = OutputSet::new();
+    if !to_stdout {
+        set.check_target(out)?;
     }
-    let sum = simulate::summary(&sim);
-    println!(
-        "simulated {} samples of {} with {}: contraction error RMS {:.5}, max {:.5}; \
-         pressure error RMS {:.5} MPa, max {:.5} MPa",
-        sim.len(),
-        record.source,
-        model.display(),
-        sum.contraction_rms,
-        sum.contraction_max,
-        sum.pressure_rms_mpa,
-        sum.pressure_max_mpa
-    );
-    println!("wrote {}", out.display());
-    if let Some(p) = plot_path {
-        println!("wrote {}", p.display());
+    if let Some(p) = plot {
+        set.check_target(p)?;
+    }
+    let rep = Reporter::new(common);
+    rep.stage(&format!("reading {}", model.display()));
+    let coeffs = pam_lab::model_file::load(model)?;
+    rep.stage(&format!("reading {}", data.display()));
+    let record = commands::read_record(data, Purpose::Simulate)?;
+    rep.stage("simulating");
+    let (sim, warnings) = commands::simulate_record(&coeffs, config, &record)
+        .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
+    for w in &warnings {
+        warn(w);
+    }
+    if !to_stdout {
+        set.add_with(out, |w| pam_lab::simulate::write_csv(w, &sim))?;
+    }
+    if let Some(p) = plot {
+        rep.stage("plotting");
+        set.add_via_path(p, |tmp| {
+            pam_lab::plot::simulate_plot(tmp, &record.source, &sim)
+        })?;
+    }
+    let written = set.commit()?;
+    rep.done();
+    let summary = commands::simulate_text(&sim, &record, model) + &wrote(&written);
+    if to_stdout {
+        let mut w = std::io::BufWriter::new(std::io::stdout().lock());
+        pam_lab::simulate::write_csv(&mut w, &sim)?;
+        w.flush()?;
+        if !common.quiet {
+            let _ = write!(std::io::stderr(), "{summary}");
+        }
+    } else if !common.quiet {
+        print_out(&summary)?;
+    }
+    Ok(())
+}
+
+fn run_diagnose(
+    data: &Path,
+    out: &Path,
+    cfg: &DiagnoseConfig,
+    draw: bool,
+    common: Common,
+) -> Result<()> {
+    cfg.fit.validate()?;
+    let mut set = OutputSet::new();
+    set.into_dir(out)?;
+    set.check_in_dir(
+        out,
+        &["report.json", "residual.png", "loops.png"][..if draw { 3 } else { 1 }],
+    )?;
+    let rep = Reporter::new(common);
+    rep.stage(&format!("reading {}", data.display()));
+    let record = commands::read_record(data, Purpose::Diagnose)?;
+    rep.stage(&format!(
+        "diagnosing {} samples: base fit, then each candidate effect",
+        record.len()
+    ));
+    let report = commands::diagnose_record(&record, cfg)?;
+    if draw {
+        rep.stage("plotting");
+    }
+    commands::stage_diagnose(&mut set, out, &report, &record, draw)?;
+    let written = set.commit()?;
+    rep.done();
+    if !common.quiet {
+        print_out(&(pam_lab::diagnose::summary(&report) + &wrote(&written)))?;
     }
     Ok(())
 }

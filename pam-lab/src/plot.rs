@@ -1,4 +1,5 @@
-//! Plots (PNG, via `plotters`), written atomically.
+//! Plots (PNG, via `plotters`), drawn to the path given (the commands give
+//! a staging path of their [`crate::output::OutputSet`]).
 //!
 //! * [`fit_plot`]: pressure against contraction, data and model per load, as
 //!   the paper's Fig. 5 (held-out samples dark, training samples light).
@@ -16,7 +17,23 @@ use crate::data::Record;
 use crate::simulate::SimSample;
 use crate::split::Split;
 
-const SIZE: (u32, u32) = (1200, 800);
+const SIZE: (u32, u32) = (1400, 800);
+/// Width of the legend column beside a chart, pixels: legends never cover data.
+const LEGEND_W: u32 = 230;
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// A legend in its own area beside the chart.
+fn legend(area: &Area, entries: &[(String, ShapeStyle)]) -> Result<()> {
+    for (i, (label, style)) in entries.iter().enumerate() {
+        let y = 40 + 24 * i as i32;
+        area.draw(&PathElement::new(vec![(6, y), (34, y)], *style))
+            .map_err(e)?;
+        area.draw(&Text::new(label.clone(), (40, y - 8), ("sans-serif", 15)))
+            .map_err(e)?;
+    }
+    Ok(())
+}
 /// Most points drawn per series (larger records are thinned evenly).
 const MAX_POINTS: usize = 20_000;
 
@@ -56,26 +73,34 @@ pub fn fit_plot(
                 .or_default() += 1;
         }
     }
-    let mut bins: Vec<(i64, usize)> = counts.into_iter().collect();
-    bins.sort_by_key(|b| std::cmp::Reverse(b.1));
-    bins.truncate(8);
+    // Only loads with data enough to see (a load step passes through bins
+    // with a few samples each): at least 20 samples and 1 % of the record.
+    let classified: usize = counts.values().sum();
+    let min_count = (classified / 100).max(20);
+    let mut bins: Vec<(i64, usize)> = counts.into_iter().filter(|b| b.1 >= min_count).collect();
+    // At most 8, spread over the range (an isometric record's forces fill
+    // many bins; the most sampled would all be at the low end).
     bins.sort();
+    if bins.len() > 8 {
+        let n = bins.len();
+        bins = (0..8).map(|k| bins[k * (n - 1) / 7]).collect();
+    }
     let keys: Vec<i64> = bins.iter().map(|b| b.0).collect();
     let thin = (samples.len() / MAX_POINTS).max(1);
     let pmax = f64::from(coeffs.params().points.max_pressure_mpa);
     let (xmin, xmax) = samples.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
         (a.min(s.contraction), b.max(s.contraction))
     });
-    let title = format!(
-        "{}: dots data (dark: held out), lines model (thick: contraction, thin: expansion)",
-        record.source
-    );
+    let title = format!("{}: data and fitted model per load", record.source);
     ensure_font();
-    crate::atomic::write_via_path(path, |tmp| {
+    (|| -> Result<()> {
+        let tmp = path;
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
+        let root = root.titled(&title, ("sans-serif", 18)).map_err(e)?;
+        let (plot_area, legend_area) = root.split_horizontally(SIZE.0 - LEGEND_W);
+        let mut entries: Vec<(String, ShapeStyle)> = Vec::new();
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(15)
             .x_label_area_size(50)
             .y_label_area_size(70)
@@ -112,13 +137,11 @@ pub fn fit_plot(
                     })
             };
             chart.draw_series(pts(false)).map_err(e)?;
-            chart
-                .draw_series(pts(true))
-                .map_err(e)?
-                .label(format!("{load:.0} N"))
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(3))
-                });
+            chart.draw_series(pts(true)).map_err(e)?;
+            entries.push((
+                format!("{load:.0} N ({} samples)", bins[k].1),
+                col.stroke_width(3),
+            ));
             let m = coeffs.load_model_clamped(load as f32);
             for (br, width) in [(Branch::Contraction, 3), (Branch::Expansion, 1)] {
                 let (r, rx) = (m.root_contraction(), m.max_contraction());
@@ -131,16 +154,16 @@ pub fn fit_plot(
                     .map_err(e)?;
             }
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()
-            .map_err(e)?;
+        entries.push(("thick: contraction branch".into(), BLACK.stroke_width(3)));
+        entries.push(("thin: expansion branch".into(), BLACK.stroke_width(1)));
+        entries.push((
+            "dots: data, dark held out".into(),
+            BLACK.mix(0.5).stroke_width(1),
+        ));
+        legend(&legend_area, &entries)?;
         root.present().map_err(e)?;
         Ok(())
-    })
+    })()
 }
 
 /// Measured and predicted contraction over time, and the error.
@@ -159,15 +182,27 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
     });
     let emax = sim.iter().map(|s| s.error().abs()).fold(1e-6, f64::max);
     ensure_font();
-    crate::atomic::write_via_path(path, |tmp| {
+    (|| -> Result<()> {
+        let tmp = path;
         let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
-        let (top, bottom) = root.split_vertically(520);
-        let mut c1 = ChartBuilder::on(&top)
-            .caption(
-                format!("{source}: simulated from measured pressure and load"),
+        let root = root
+            .titled(
+                &format!("{source}: simulated from measured pressure and load"),
                 ("sans-serif", 22),
             )
+            .map_err(e)?;
+        let (root, legend_area) = root.split_horizontally(SIZE.0 - LEGEND_W);
+        legend(
+            &legend_area,
+            &[
+                ("measured".into(), BLACK.mix(0.6).stroke_width(2)),
+                ("model".into(), color(1).stroke_width(2)),
+                ("model − measured (lower)".into(), color(0).stroke_width(2)),
+            ],
+        )?;
+        let (top, bottom) = root.split_vertically(480);
+        let mut c1 = ChartBuilder::on(&top)
             .margin(15)
             .x_label_area_size(35)
             .y_label_area_size(70)
@@ -183,23 +218,14 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
                 .map(|s| (s.t_s, s.measured_contraction)),
             BLACK.mix(0.6),
         ))
-        .map_err(e)?
-        .label("measured")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+        .map_err(e)?;
         c1.draw_series(LineSeries::new(
             sim.iter()
                 .step_by(thin)
                 .map(|s| (s.t_s, s.predicted_contraction)),
             color(1),
         ))
-        .map_err(e)?
-        .label("model")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color(1)));
-        c1.configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(e)?;
+        .map_err(e)?;
         let mut c2 = ChartBuilder::on(&bottom)
             .margin(15)
             .x_label_area_size(45)
@@ -218,7 +244,7 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
         .map_err(e)?;
         root.present().map_err(e)?;
         Ok(())
-    })
+    })()
 }
 
 /// Register the bundled DejaVu Sans (`assets/DejaVuSans.ttf`, licence beside

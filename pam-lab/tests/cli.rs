@@ -37,13 +37,19 @@ fn fit_then_simulate_writes_every_output() {
     let data = dir.path().join("rig.csv");
     write_record(&data, &[100.0, 300.0]);
     let out = dir.path().join("out");
-    let (ok, stdout, stderr) =
-        pam_lab(&["fit", data.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let (ok, stdout, stderr) = pam_lab(&[
+        "fit",
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--progress",
+        "always",
+    ]);
     assert!(ok, "{stdout}\n{stderr}");
     assert!(stdout.contains("held-out errors"), "{stdout}");
     assert!(
         stderr.contains("least squares"),
-        "progress on stderr: {stderr}"
+        "progress on stderr when asked for: {stderr}"
     );
     for f in ["model.json", "model.blob", "model_params.rs", "fit.png"] {
         assert!(out.join(f).metadata().unwrap().len() > 0, "{f}");
@@ -92,7 +98,7 @@ fn bad_inputs_fail_with_file_line_and_column_and_write_nothing() {
         ),
         (
             "t_s,load_n,pressure_mpa,contraction\n0,100,0.1,1.5\n",
-            "bad.csv:2: column `contraction`: physically impossible",
+            "bad.csv:2: column `contraction`: value 1.5 is out of range",
         ),
     ];
     for (text, want) in cases {
@@ -146,4 +152,148 @@ fn simulate_refuses_a_corrupt_blob_and_keeps_the_old_output() {
         "{stderr}"
     );
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "old");
+}
+
+fn pam_lab_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pam-lab"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn simulate_to_a_closed_pipe_ends_quietly() {
+    use std::io::Read;
+    let dir = tempfile::tempdir().unwrap();
+    write_record(&dir.path().join("rig.csv"), &[100.0, 300.0]);
+    std::fs::write(
+        dir.path().join("model.blob"),
+        pam_core::blob::encode(&Params::DEFAULT),
+    )
+    .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pam-lab"))
+        .args(["simulate", "model.blob", "rig.csv", "-o", "-"])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Read the header line only, then close the pipe (as `| head -1` does).
+    let mut stdout = child.stdout.take().unwrap();
+    let mut first = [0u8; 16];
+    stdout.read_exact(&mut first).unwrap();
+    assert_eq!(&first, b"t_s,load_n,press");
+    drop(stdout);
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+}
+
+#[test]
+fn outputs_have_ordinary_permissions_and_quiet_prints_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    write_record(&dir.path().join("rig.csv"), &[100.0, 300.0]);
+    let out = pam_lab_in(dir.path(), &["fit", "rig.csv", "-o", "fit", "-q"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.stdout.is_empty() && out.stderr.is_empty(), "quiet");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // What a file created the ordinary way gets under this umask.
+        let probe = dir.path().join("probe");
+        std::fs::write(&probe, b"").unwrap();
+        let ordinary = probe.metadata().unwrap().permissions().mode() & 0o777;
+        for f in ["model.json", "model.blob", "model_params.rs", "fit.png"] {
+            let mode = dir
+                .path()
+                .join("fit")
+                .join(f)
+                .metadata()
+                .unwrap()
+                .permissions()
+                .mode();
+            assert_eq!(mode & 0o777, ordinary, "{f}: {:o}", mode & 0o777);
+        }
+    }
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        names.iter().all(|n| !n.starts_with(".pam-lab")),
+        "no staging left: {names:?}"
+    );
+}
+
+#[test]
+fn simulate_warns_about_loads_outside_the_calibrated_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("rig.csv");
+    write_record(&path, &[100.0, 300.0]);
+    // The second half of the record at 5000 N.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let half = lines.len() / 2;
+    let mut edited = String::new();
+    for (i, l) in lines.iter().enumerate() {
+        if i >= half && !l.starts_with('#') && !l.starts_with("t_s") {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f[1] = "5000";
+            edited.push_str(&f.join(","));
+        } else {
+            edited.push_str(l);
+        }
+        edited.push('\n');
+    }
+    std::fs::write(&path, edited).unwrap();
+    std::fs::write(
+        dir.path().join("model.json"),
+        pam_lab::model_file::ModelFile::new(Params::DEFAULT, None).to_json(),
+    )
+    .unwrap();
+    let out = pam_lab_in(
+        dir.path(),
+        &["simulate", "model.json", "rig.csv", "-o", "sim.csv"],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let first_line = half + 1;
+    assert!(
+        stderr.contains(&format!(
+            "warning: rig.csv:{first_line}: load outside the model's calibrated range"
+        )),
+        "{stderr}"
+    );
+    assert!(stderr.contains("..5000)"), "{stderr}");
+    assert!(dir.path().join("sim.csv").is_file());
+}
+
+#[test]
+fn diagnose_writes_its_three_files_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    write_record(&dir.path().join("rig.csv"), &[100.0, 200.0, 300.0]);
+    let out = pam_lab_in(dir.path(), &["diagnose", "rig.csv", "-o", "diag"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["report.json", "residual.png", "loops.png"] {
+        assert!(
+            dir.path().join("diag").join(f).metadata().unwrap().len() > 0,
+            "{f}"
+        );
+        assert!(stdout.contains(&format!("wrote diag/{f}")), "{stdout}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("diag/report.json")).unwrap())
+            .unwrap();
+    assert!(json.get("named").is_some(), "{json}");
 }

@@ -1,0 +1,132 @@
+//! Regenerate the example records in the repository's `examples/` folder
+//! (see `examples/README.md`): the project's own simulated rig
+//! ([`host_sim::Rig`]: Tondu–Lopez muscle, Maxwell-slip friction, regulated
+//! chamber, noisy sensors) run through one short isotonic protocol, each
+//! record with one effect turned up.
+//!
+//! ```sh
+//! cargo run --release -p host-sim --example example_records            # into examples/
+//! cargo run --release -p host-sim --example example_records -- OUT_DIR
+//! ```
+//!
+//! Deterministic: the same code writes the same bytes.
+
+use std::path::PathBuf;
+
+use host_sim::plant::MuscleParams;
+use host_sim::pneumatics::PneumaticParams;
+use host_sim::rig::IsometricClamp;
+use host_sim::{Rig, Sample};
+
+/// Logging rate, Hz (half the characterisation run's, to keep the files small).
+const LOG_HZ: f64 = 25.0;
+/// Loads of the isotonic records, N.
+const LOADS_N: [f64; 4] = [100.0, 200.0, 300.0, 400.0];
+/// Contractions the isometric record holds.
+const HOLDS: [f64; 3] = [0.10, 0.14, 0.18];
+
+/// Pressure moves at each load after 2 s at 0 MPa: `(to MPa, rate MPa/s)`.
+/// Two full cycles at 0.05 MPa/s, reversals inside the loop, one fast
+/// cycle at 0.2 MPa/s.
+const MOVES: [(f64, f64); 11] = [
+    (0.5, 0.05),
+    (0.0, 0.05),
+    (0.5, 0.05),
+    (0.0, 0.05),
+    (0.3, 0.05),
+    (0.15, 0.05),
+    (0.4, 0.05),
+    (0.25, 0.05),
+    (0.0, 0.05),
+    (0.5, 0.2),
+    (0.0, 0.2),
+];
+
+/// Run the protocol once at the rig's present load or clamp.
+fn protocol(rig: &mut Rig, out: &mut Vec<Sample>) {
+    let dt = 1.0 / LOG_HZ;
+    for _ in 0..(2.0 * LOG_HZ) as usize {
+        out.push(rig.measure());
+        rig.advance_regulated(0.0, dt);
+    }
+    let mut p = 0.0;
+    for (to, rate) in MOVES {
+        let n = (to - p).abs() / rate / dt;
+        let n = n.round() as usize;
+        let from = p;
+        for k in 0..n {
+            out.push(rig.measure());
+            let target = from + (to - from) * (k + 1) as f64 / n as f64;
+            rig.advance_regulated(target, dt);
+        }
+        p = to;
+    }
+}
+
+/// An isotonic record. Its load column is the hung load, as a test log
+/// records the weight it hangs (the isometric record's is the load cell's
+/// reading: there the force is the measurement).
+fn isotonic(muscle: MuscleParams, seed: u64) -> Vec<Sample> {
+    let mut rig = Rig::new(muscle, PneumaticParams::DEFAULT, LOADS_N[0], seed);
+    let mut out = Vec::new();
+    for load in LOADS_N {
+        rig.set_load_n(load);
+        let from = out.len();
+        protocol(&mut rig, &mut out);
+        for s in &mut out[from..] {
+            s.load_n = load;
+        }
+    }
+    out
+}
+
+fn isometric(seed: u64) -> Vec<Sample> {
+    let mut rig = Rig::reference(0.0, seed);
+    let mut out = Vec::new();
+    for hold in HOLDS {
+        rig.set_clamp(Some(IsometricClamp {
+            hold_contraction: hold,
+            stiffness_n_per_m: host_sim::characterisation::CLAMP_STIFFNESS_N_PER_M,
+        }));
+        protocol(&mut rig, &mut out);
+    }
+    out
+}
+
+fn main() -> std::io::Result<()> {
+    let dir = std::env::args_os()
+        .nth(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples"));
+    std::fs::create_dir_all(&dir)?;
+    let reference = MuscleParams::DEFAULT;
+    // Rate dependence: viscous damping 300 -> 1500 N per unit contraction
+    // per second, so the loop widens on the 0.2 MPa/s cycle.
+    let rate = MuscleParams {
+        damping_n_s: 1500.0,
+        ..reference
+    };
+    // Load-dependent width: friction mostly proportional to the active
+    // force (F_c0 20 -> 5 N, μ 0.11 -> 0.25), so the loop grows with load.
+    let width = MuscleParams {
+        friction_base_n: 5.0,
+        friction_ratio: 0.25,
+        ..reference
+    };
+    let records = [
+        ("reference.csv", isotonic(reference, 1)),
+        ("rate_dependence.csv", isotonic(rate, 2)),
+        ("load_dependent_width.csv", isotonic(width, 3)),
+        ("isometric.csv", isometric(4)),
+    ];
+    for (name, mut samples) in records {
+        let t0 = samples.first().map_or(0.0, |s| s.t_s);
+        for s in &mut samples {
+            s.t_s -= t0;
+        }
+        let path = dir.join(name);
+        host_sim::write_samples_csv(&path, &samples)?;
+        println!("wrote {} ({} samples)", path.display(), samples.len());
+    }
+    Ok(())
+}

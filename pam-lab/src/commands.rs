@@ -1,0 +1,382 @@
+//! The three commands of `pam-lab` as library functions: what the binary
+//! runs, and what the fuzz targets (`fuzz/fuzz_targets/fit_record.rs`,
+//! `diagnose_record.rs`) run, so both reach the same code.
+//!
+//! Each command is split the same way:
+//! 1. options validated ([`fit::FitConfig::validate`],
+//!    [`TrackerConfig::validate`]) before anything is read;
+//! 2. the record read and checked for the command ([`read_record`]:
+//!    located errors, record-level checks);
+//! 3. the work ([`fit_record`], [`diagnose_record`], [`simulate_record`]),
+//!    whose outputs are bytes in memory;
+//! 4. the outputs staged into one [`OutputSet`] ([`stage_fit`],
+//!    [`stage_diagnose`]) and committed together by the caller.
+
+use std::fmt::Write as _;
+use std::io::Read;
+use std::path::Path;
+
+use pam_core::{Coeffs, TrackerConfig};
+
+use crate::data::{self, num, num32, DataError, Purpose, Record};
+use crate::diagnose::{self, DiagnoseConfig, DiagnoseError, DiagnoseReport};
+use crate::fit::{self, FitConfig, FitError, FitReport, Progress};
+use crate::model_file::{self, FitSummary, ModelFile};
+use crate::output::OutputSet;
+use crate::simulate::{self, SimSample};
+
+/// Read `path` and check it for `purpose` ([`data::read_csv`], then
+/// [`data::check_record`], and for `diagnose` [`check_load_blocks`]).
+pub fn read_record(path: &Path, purpose: Purpose) -> Result<Record, DataError> {
+    let record = data::read_csv(path)?;
+    check(&record, purpose)?;
+    Ok(record)
+}
+
+/// [`read_record`] from any reader; `source` names it in errors.
+pub fn parse_record<R: Read>(
+    source: &str,
+    reader: R,
+    purpose: Purpose,
+) -> Result<Record, DataError> {
+    let record = data::parse_csv(source, reader)?;
+    check(&record, purpose)?;
+    Ok(record)
+}
+
+fn check(record: &Record, purpose: Purpose) -> Result<(), DataError> {
+    data::check_record(record, purpose)?;
+    if purpose == Purpose::Diagnose {
+        check_load_blocks(record)?;
+    }
+    Ok(())
+}
+
+/// `diagnose` holds out alternate blocks of one load
+/// ([`diagnose::holdout_by_load_block`]); a load column that changes between
+/// most samples (an isometric record's measured force, a noisy load cell)
+/// has no such blocks: refused before the work, with the reason.
+pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
+    let mask = diagnose::holdout_by_load_block(&record.samples);
+    let blocks = 1 + mask.windows(2).filter(|w| w[0] != w[1]).count();
+    let mean_len = record.len() as f64 / blocks as f64;
+    if blocks > 1 && mean_len < 50.0 {
+        return Err(DataError {
+            file: record.source.clone(),
+            line: 0,
+            column: Some("load_n".into()),
+            kind: data::DataErrorKind::TooFewSamples(format!(
+                "diagnose holds out alternate blocks of one load (within 1 N), but the load \
+                 changes so often that the {} samples make {blocks} blocks of {:.1} samples on \
+                 average: it needs an isotonic record that logs its hung load (an isometric \
+                 record's force or a noisy load cell cannot be split so)",
+                record.len(),
+                mean_len
+            )),
+        });
+    }
+    Ok(())
+}
+
+/// A finished fit and the files it makes.
+#[derive(Debug)]
+pub struct FitOutcome {
+    /// The fit.
+    pub report: FitReport,
+    /// `model.json`, `model.blob`, `model_params.rs`: `(file name, bytes)`.
+    pub files: Vec<(&'static str, Vec<u8>)>,
+    /// Training samples used.
+    pub training_samples: usize,
+}
+
+/// `pam-lab fit`'s work: fit `record` (checked by [`read_record`]) with
+/// `cfg` (validated) and make the model files. Every file is checked to read
+/// back: the blob decodes, the JSON parses to the same parameters.
+pub fn fit_record(
+    record: &Record,
+    cfg: &FitConfig,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<FitOutcome, FitError> {
+    cfg.validate()?;
+    let report = fit::fit_with_progress(record, cfg, progress)?;
+    let training_samples = (0..record.len())
+        .filter(|&i| report.split.branch.get(i).is_some_and(Option::is_some) && !report.heldout[i])
+        .count();
+    let any_heldout = report.heldout.iter().any(|h| *h);
+    let summary = FitSummary {
+        source: record.source.clone(),
+        samples: record.len(),
+        training_samples,
+        holdout: report.holdout.to_string(),
+        max_pressure_source: format!("{:?}", report.pmax_source).to_lowercase(),
+        pressure_noise_mpa: report.split.pressure_noise_mpa,
+        contraction_noise: report.split.contraction_noise,
+        heldout_errors: any_heldout.then(|| report.test.clone()),
+    };
+    let json = ModelFile::new(report.params, Some(summary)).to_json();
+    let blob = pam_core::blob::encode(&report.params);
+    let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);
+    let rs = model_file::rust_source(&report.params, &origin);
+    Ok(FitOutcome {
+        report,
+        files: vec![
+            ("model.json", json.into_bytes()),
+            ("model.blob", blob.to_vec()),
+            ("model_params.rs", rs.into_bytes()),
+        ],
+        training_samples,
+    })
+}
+
+/// Stage `fit`'s files in `dir`; `fit.png` too when `draw`.
+pub fn stage_fit(
+    set: &mut OutputSet,
+    dir: &Path,
+    outcome: &FitOutcome,
+    record: &Record,
+    cfg: &FitConfig,
+    draw: bool,
+) -> anyhow::Result<()> {
+    set.into_dir(dir)?;
+    for (name, bytes) in &outcome.files {
+        set.add_bytes(&dir.join(name), bytes)?;
+    }
+    if draw {
+        let r = &outcome.report;
+        set.add_via_path(&dir.join("fit.png"), |p| {
+            crate::plot::fit_plot(p, record, &r.split, &r.heldout, &r.coeffs, cfg.load_bin_n)
+        })?;
+    }
+    Ok(())
+}
+
+/// The report `pam-lab fit` prints.
+pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> String {
+    let report = &outcome.report;
+    let p = &report.params;
+    let any_heldout = report.heldout.iter().any(|h| *h);
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "model of {} ({} samples, {} for training, held out: {})",
+        record.source,
+        record.len(),
+        outcome.training_samples,
+        report.holdout
+    );
+    let _ = writeln!(
+        out,
+        "  loads {}..{} N, step {} N; Pmax {} MPa ({:?})",
+        num32(p.min_load_n),
+        num32(p.max_load_n),
+        num32(p.load_step_n),
+        num32(p.points.max_pressure_mpa),
+        report.pmax_source
+    );
+    let _ = writeln!(
+        out,
+        "  R1 {:.5}  Rx1 {:.5}  tangency ({:.5}, {:.5} MPa)  inflection ({:.5}, {:.5} MPa)",
+        p.points.root_contraction,
+        p.points.max_contraction,
+        p.points.tangency.contraction,
+        p.points.tangency.pressure_mpa,
+        p.points.inflection.contraction,
+        p.points.inflection.pressure_mpa
+    );
+    let _ = writeln!(
+        out,
+        "  RG_L {:.6}  RG_U {:.6}  GR_c {:.5}  be {:.5} MPa",
+        p.root_regression_per_step,
+        p.max_regression_per_step,
+        p.c_growth_per_step,
+        p.ellipse_height_mpa
+    );
+    let _ = writeln!(
+        out,
+        "  noise estimate: pressure {:.5} MPa, contraction {:.5}",
+        report.split.pressure_noise_mpa, report.split.contraction_noise
+    );
+    let _ = writeln!(
+        out,
+        "  test: {} ({})",
+        report.test_kind,
+        if cfg.test.is_some() {
+            "given"
+        } else {
+            "detected"
+        }
+    );
+    let _ = writeln!(out, "  shape: {}", report.shape.statement());
+    let _ = writeln!(
+        out,
+        "{} errors (model − measured; pressure by the forward model, contraction by the inverse):",
+        if any_heldout {
+            "held-out"
+        } else {
+            "training (nothing held out)"
+        }
+    );
+    out.push_str(&report.test.to_text());
+    let _ = writeln!(
+        out,
+        "  {} pressure error RMS {:.5} MPa, contraction error RMS {:.6} ({} error is primary for an {} test)",
+        if any_heldout { "held-out" } else { "training" },
+        report.test.total.pressure_rms_mpa,
+        report.test.total.contraction_rms,
+        if report.test_kind == fit::TestKind::Isometric {
+            "the pressure"
+        } else {
+            "the contraction"
+        },
+        report.test_kind
+    );
+    out
+}
+
+/// `pam-lab diagnose`'s work on a record checked by [`read_record`].
+pub fn diagnose_record(
+    record: &Record,
+    cfg: &DiagnoseConfig,
+) -> Result<DiagnoseReport, DiagnoseError> {
+    cfg.fit.validate()?;
+    diagnose::diagnose(record, cfg)
+}
+
+/// Stage `report.json` and, when `draw`, `residual.png` and `loops.png` in
+/// `dir`.
+pub fn stage_diagnose(
+    set: &mut OutputSet,
+    dir: &Path,
+    report: &DiagnoseReport,
+    record: &Record,
+    draw: bool,
+) -> anyhow::Result<()> {
+    set.into_dir(dir)?;
+    let mut json = serde_json::to_string_pretty(report).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: cannot encode the report: {e}",
+            dir.join("report.json").display()
+        )
+    })?;
+    json.push('\n');
+    set.add_bytes(&dir.join("report.json"), json.as_bytes())?;
+    if draw {
+        set.add_via_path(&dir.join("residual.png"), |p| {
+            crate::diagnose_plot::residual_plot(report, record, p)
+        })?;
+        set.add_via_path(&dir.join("loops.png"), |p| {
+            crate::diagnose_plot::loops_plot(report, record, p)
+        })?;
+    }
+    Ok(())
+}
+
+/// `pam-lab simulate`'s work: the simulation and the warnings about data
+/// outside the model's calibrated range.
+pub fn simulate_record(
+    coeffs: &Coeffs,
+    config: TrackerConfig,
+    record: &Record,
+) -> Result<(Vec<SimSample>, Vec<String>), pam_core::Error> {
+    config.validate()?;
+    let warnings = range_warnings(coeffs, record);
+    Ok((
+        simulate::simulate(coeffs, config, &record.samples),
+        warnings,
+    ))
+}
+
+/// Warnings for samples outside what the model was calibrated for: loads
+/// outside `[min_load_n, max_load_n]` (by more than 2 % of the range or
+/// 5 N; the tracker clamps them to the range) and pressures above `Pmax`
+/// (the inverse clamps them to the end of the stroke).
+pub fn range_warnings(coeffs: &Coeffs, record: &Record) -> Vec<String> {
+    let p = coeffs.params();
+    let (lo, hi) = (f64::from(p.min_load_n), f64::from(p.max_load_n));
+    let tol = (0.02 * (hi - lo)).max(5.0);
+    let pmax = f64::from(p.points.max_pressure_mpa);
+    let mut out = Vec::new();
+    let mut describe = |what: &str,
+                        outside: &dyn Fn(f64) -> bool,
+                        get: fn(&data::Sample) -> f64,
+                        range: String,
+                        effect: &str| {
+        let idx: Vec<usize> = (0..record.len())
+            .filter(|&i| outside(get(&record.samples[i])))
+            .collect();
+        let (Some(&first), false) = (idx.first(), idx.is_empty()) else {
+            return;
+        };
+        let (vmin, vmax) = idx.iter().fold((f64::MAX, f64::MIN), |(a, b), &i| {
+            let v = get(&record.samples[i]);
+            (a.min(v), b.max(v))
+        });
+        out.push(format!(
+            "{}:{}: {what} outside the model's calibrated range {range} on {} of {} samples \
+             ({}..{}): {effect}",
+            record.source,
+            record.line(first),
+            idx.len(),
+            record.len(),
+            num(vmin),
+            num(vmax),
+        ));
+    };
+    describe(
+        "load",
+        &|v| v < lo - tol || v > hi + tol,
+        |s| s.load_n,
+        format!("{}..{} N", num(lo), num(hi)),
+        "the model holds the nearest calibrated load there, so its prediction is a guess",
+    );
+    describe(
+        "pressure",
+        &|v| v > pmax * 1.02,
+        |s| s.pressure_mpa,
+        format!("0..{} MPa", num(pmax)),
+        "the model holds its end of stroke there",
+    );
+    out
+}
+
+/// The line `simulate` prints.
+pub fn simulate_text(sim: &[SimSample], record: &Record, model: &Path) -> String {
+    let sum = simulate::summary(sim);
+    format!(
+        "simulated {} samples of {} with {}: contraction error RMS {:.5}, max {:.5}; \
+         pressure error RMS {:.5} MPa, max {:.5} MPa\n",
+        sim.len(),
+        record.source,
+        model.display(),
+        sum.contraction_rms,
+        sum.contraction_max,
+        sum.pressure_rms_mpa,
+        sum.pressure_max_mpa
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pam_core::Params;
+
+    #[test]
+    fn loads_outside_the_calibrated_range_are_warned_with_their_first_line() {
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+        let p = coeffs.params();
+        let mid = f64::from(p.min_load_n + p.max_load_n) / 2.0;
+        let s = |load| data::Sample {
+            t_s: 0.0,
+            load_n: load,
+            pressure_mpa: 0.1,
+            contraction: 0.05,
+        };
+        let rec = Record::from_samples("r.csv", vec![s(mid), s(mid), s(5000.0), s(0.0)]);
+        let w = range_warnings(&coeffs, &rec);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].starts_with("r.csv:4: load outside"), "{}", w[0]);
+        assert!(w[0].contains("on 2 of 4 samples (0..5000)"), "{}", w[0]);
+        let ok = Record::from_samples("r.csv", vec![s(mid); 3]);
+        assert!(range_warnings(&coeffs, &ok).is_empty());
+    }
+}
