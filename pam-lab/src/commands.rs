@@ -21,7 +21,7 @@ use pam_core::{Coeffs, TrackerConfig};
 use crate::data::{self, num, num32, DataError, Purpose, Record};
 use crate::diagnose::{self, DiagnoseConfig, DiagnoseError, DiagnoseReport};
 use crate::fit::{self, FitConfig, FitError, FitReport, Progress};
-use crate::model_file::{self, FitSummary, ModelFile};
+use crate::model_file::{self, FitSummary};
 use crate::output::OutputSet;
 use crate::simulate::{self, SimSample};
 
@@ -113,17 +113,20 @@ pub fn fit_record(
         contraction_noise: report.split.contraction_noise,
         heldout_errors: any_heldout.then(|| report.test.clone()),
     };
-    let json = ModelFile::new(report.params, Some(summary)).to_json();
-    let blob = pam_core::blob::encode(&report.params);
     let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);
-    let rs = model_file::rust_source(&report.params, &origin);
+    let files = model_file::model_files(
+        &report.params,
+        &pam_core::Effects::NONE,
+        Some(summary),
+        &origin,
+    )
+    .map_err(|e| FitError::Export {
+        source_name: record.source.clone(),
+        why: e.to_string(),
+    })?;
     Ok(FitOutcome {
         report,
-        files: vec![
-            ("model.json", json.into_bytes()),
-            ("model.blob", blob.to_vec()),
-            ("model_params.rs", rs.into_bytes()),
-        ],
+        files,
         training_samples,
     })
 }
@@ -260,6 +263,14 @@ pub fn stage_diagnose(
     })?;
     json.push('\n');
     set.add_bytes(&dir.join("report.json"), json.as_bytes())?;
+    // The model diagnose ends with, effects included, as `fit` writes it:
+    // what the firmware boots from (blob version 2 when it has effects).
+    let origin = format!("pam-lab diagnose {}", report.source);
+    for (name, bytes) in
+        model_file::model_files(&report.final_params, &report.effects, None, &origin)?
+    {
+        set.add_bytes(&dir.join(name), &bytes)?;
+    }
     if draw {
         set.add_via_path(&dir.join("residual.png"), |p| {
             crate::diagnose_plot::residual_plot(report, record, p)

@@ -190,6 +190,14 @@ pub enum FitError {
         /// What happened.
         why: String,
     },
+    /// The fitted model's files could not be made or did not read back.
+    #[error("{source_name}: the model files could not be made: {why}")]
+    Export {
+        /// The record.
+        source_name: String,
+        /// What happened.
+        why: String,
+    },
 }
 
 impl FitConfig {

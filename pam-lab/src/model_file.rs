@@ -239,37 +239,39 @@ fn f32_literal(v: f32) -> String {
     }
 }
 
-/// Write a model's three files into `dir`: `model.json` ([`ModelFile`]),
-/// `model.blob` ([`blob_bytes`]) and `model_params.rs`
-/// ([`rust_source_with_effects`]), each atomically (no half-written file).
+/// A model's three files, `(file name, bytes)`: `model.json`
+/// ([`ModelFile`]), `model.blob` ([`blob_bytes`]) and `model_params.rs`
+/// ([`rust_source_with_effects`]), for a caller to write as one output set.
 /// Refuses a model that does not validate (`Coeffs::new`,
-/// `Effects::validate`). Returns the paths written.
-pub fn write_model_files(
-    dir: &Path,
+/// `Effects::validate`), and checks that the blob decodes to the same model
+/// and the JSON reads back to the same parameters.
+pub fn model_files(
     params: &Params,
     effects: &Effects,
     fit: Option<FitSummary>,
     origin: &str,
-) -> Result<Vec<std::path::PathBuf>> {
+) -> Result<Vec<(&'static str, Vec<u8>)>> {
     Coeffs::new(*params).map_err(|e| anyhow::anyhow!("invalid model: {e}"))?;
     effects
         .validate()
         .map_err(|e| anyhow::anyhow!("invalid effects: {e}"))?;
-    let json = dir.join("model.json");
-    crate::atomic::write_bytes(
-        &json,
-        ModelFile::with_effects(*params, *effects, fit)
-            .to_json()
-            .as_bytes(),
-    )?;
-    let b = dir.join("model.blob");
-    crate::atomic::write_bytes(&b, &blob_bytes(params, effects))?;
-    let rs = dir.join("model_params.rs");
-    crate::atomic::write_bytes(
-        &rs,
-        rust_source_with_effects(params, effects, origin).as_bytes(),
-    )?;
-    Ok(vec![json, b, rs])
+    let json = ModelFile::with_effects(*params, *effects, fit).to_json();
+    let blob = blob_bytes(params, effects);
+    let (c, e) = blob::decode_model(&blob)
+        .map_err(|e| anyhow::anyhow!("the blob does not read back: {e}"))?;
+    let read: ModelFile = serde_json::from_str(&json)
+        .map_err(|e| anyhow::anyhow!("model.json does not read back: {e}"))?;
+    if c.params() != params || e != *effects || read.params != *params {
+        anyhow::bail!("the model files do not read back to the model");
+    }
+    Ok(vec![
+        ("model.json", json.into_bytes()),
+        ("model.blob", blob),
+        (
+            "model_params.rs",
+            rust_source_with_effects(params, effects, origin).into_bytes(),
+        ),
+    ])
 }
 
 #[cfg(test)]
@@ -309,6 +311,25 @@ mod tests {
         assert!(src.contains("root_contraction: 0.0151208835,"), "{src}");
         assert!(src.contains("max_pressure_mpa: 0.50096667,"), "{src}");
         assert!(src.contains("min_load_n: 100.0,"), "{src}");
+    }
+
+    /// Write [`model_files`]' output into `dir`, as a command's output set does.
+    fn write_model_files(
+        dir: &Path,
+        params: &Params,
+        effects: &Effects,
+        fit: Option<FitSummary>,
+        origin: &str,
+    ) -> Result<Vec<std::path::PathBuf>> {
+        let files = model_files(params, effects, fit, origin)?;
+        Ok(files
+            .into_iter()
+            .map(|(name, bytes)| {
+                let p = dir.join(name);
+                std::fs::write(&p, bytes).unwrap();
+                p
+            })
+            .collect())
     }
 
     fn memory_model() -> Effects {

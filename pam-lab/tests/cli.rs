@@ -275,7 +275,7 @@ fn simulate_warns_about_loads_outside_the_calibrated_range() {
 }
 
 #[test]
-fn diagnose_writes_its_three_files_at_once() {
+fn diagnose_writes_its_report_plots_and_model_at_once() {
     let dir = tempfile::tempdir().unwrap();
     write_record(&dir.path().join("rig.csv"), &[100.0, 200.0, 300.0]);
     let out = pam_lab_in(dir.path(), &["diagnose", "rig.csv", "-o", "diag"]);
@@ -285,7 +285,14 @@ fn diagnose_writes_its_three_files_at_once() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    for f in ["report.json", "residual.png", "loops.png"] {
+    for f in [
+        "report.json",
+        "model.json",
+        "model.blob",
+        "model_params.rs",
+        "residual.png",
+        "loops.png",
+    ] {
         assert!(
             dir.path().join("diag").join(f).metadata().unwrap().len() > 0,
             "{f}"
@@ -296,4 +303,10 @@ fn diagnose_writes_its_three_files_at_once() {
         serde_json::from_slice(&std::fs::read(dir.path().join("diag/report.json")).unwrap())
             .unwrap();
     assert!(json.get("named").is_some(), "{json}");
+    // The blob is the model diagnose ended with, as the firmware reads it.
+    let blob = std::fs::read(dir.path().join("diag/model.blob")).unwrap();
+    let (coeffs, _effects) = pam_core::blob::decode_model(&blob).unwrap();
+    let final_params: pam_core::Params =
+        serde_json::from_value(json["final_params"].clone()).unwrap();
+    assert_eq!(coeffs.params(), &final_params);
 }
