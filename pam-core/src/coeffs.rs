@@ -52,10 +52,13 @@ impl Coeffs {
                 "must be in (0, 10] MPa",
             ));
         }
-        if !(p.root_contraction > -1.0
-            && p.max_contraction < 1.0
-            && p.max_contraction > p.root_contraction)
-        {
+        if !(p.root_contraction > -1.0) {
+            return Err(Error::OutOfRange(
+                "root_contraction",
+                "need -1 < root_contraction < max_contraction < 1",
+            ));
+        }
+        if !(p.max_contraction < 1.0 && p.max_contraction > p.root_contraction) {
             return Err(Error::OutOfRange(
                 "max_contraction",
                 "need -1 < root_contraction < max_contraction < 1",
@@ -172,6 +175,39 @@ mod tests {
     #[test]
     fn default_params_validate() {
         Coeffs::new(Params::DEFAULT).unwrap();
+    }
+
+    /// Each refusal names the field that is wrong, not a neighbour.
+    #[test]
+    fn errors_name_the_field_at_fault() {
+        let field = |f: &dyn Fn(&mut Params)| {
+            let mut p = Params::DEFAULT;
+            f(&mut p);
+            match Coeffs::new(p) {
+                Err(Error::OutOfRange(name, _)) => name,
+                other => panic!("{other:?}"),
+            }
+        };
+        assert_eq!(
+            field(&|p| p.points.root_contraction = -5.0),
+            "root_contraction"
+        );
+        assert_eq!(
+            field(&|p| p.points.max_contraction = 5.0),
+            "max_contraction"
+        );
+        assert_eq!(
+            field(&|p| p.points.max_contraction = -0.5),
+            "max_contraction"
+        );
+        assert_eq!(
+            field(&|p| p.root_regression_per_step = -5.0),
+            "root_regression_per_step"
+        );
+        assert_eq!(
+            field(&|p| p.max_regression_per_step = 5.0),
+            "max_regression_per_step"
+        );
     }
 
     #[test]

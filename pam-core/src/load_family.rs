@@ -194,10 +194,19 @@ impl LoadFamily {
                 ));
             }
             if !(at.max_contraction as f32 > at.cubic.root as f32) {
-                return Err(Error::OutOfRange(
-                    "max_regression_per_step",
-                    "Rx_i falls to R_i inside the load range",
-                ));
+                // Name the factor that closes the stroke: the root's when R_i
+                // rises above R_1 (a negative root regression), else Rx's.
+                return Err(if at.cubic.root > self.root_contraction {
+                    Error::OutOfRange(
+                        "root_regression_per_step",
+                        "R_i rises to Rx_i inside the load range",
+                    )
+                } else {
+                    Error::OutOfRange(
+                        "max_regression_per_step",
+                        "Rx_i falls to R_i inside the load range",
+                    )
+                });
             }
             at.check_shape(margin)?;
         }
