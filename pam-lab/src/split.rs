@@ -112,6 +112,45 @@ pub fn moving_average(x: &[f64], w: usize) -> Vec<f64> {
         .collect()
 }
 
+/// Centred running median of `2·half + 1` samples (shrinking at the ends).
+///
+/// Unlike a moving average it keeps steps sharp, so smoothing a pressure
+/// with it does not fake a lag or a creep after a step.
+pub fn running_median(x: &[f64], half: usize) -> Vec<f64> {
+    let n = x.len();
+    let mut window = Vec::with_capacity(2 * half + 1);
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(half), (i + half).min(n - 1));
+            window.clear();
+            window.extend_from_slice(&x[a..=b]);
+            window.sort_by(f64::total_cmp);
+            window[window.len() / 2]
+        })
+        .collect()
+}
+
+/// Held-out mask by load blocks (runs of one load, within 1 N): they
+/// alternate training (even) and held out (odd). A record of one load
+/// block holds out its last 30 %.
+pub fn holdout_by_load_block(loads_n: &[f64]) -> Vec<bool> {
+    let mut block = 0usize;
+    let mut out = Vec::with_capacity(loads_n.len());
+    let mut last = loads_n.first().copied().unwrap_or(0.0);
+    for &l in loads_n {
+        if (l - last).abs() > 1.0 {
+            block += 1;
+            last = l;
+        }
+        out.push(block % 2 == 1);
+    }
+    if block == 0 {
+        let first = (loads_n.len() as f64 * 0.7) as usize;
+        return (0..loads_n.len()).map(|i| i >= first).collect();
+    }
+    out
+}
+
 /// Label every sample with its branch; see the module docs.
 pub fn split_branches(samples: &[Sample], cfg: &SplitConfig) -> Split {
     let n = samples.len();
@@ -313,5 +352,19 @@ mod tests {
     fn flat_record_has_no_branch() {
         let s = split_branches(&samples(&[0.1; 50]), &SplitConfig::default());
         assert!(s.branch.iter().all(Option::is_none));
+    }
+
+    #[test]
+    fn load_blocks_alternate() {
+        let v = [100.0, 100.0, 200.0, 200.0, 300.0, 150.0];
+        assert_eq!(
+            holdout_by_load_block(&v),
+            vec![false, false, true, true, false, true]
+        );
+        let one = [100.0; 10];
+        assert_eq!(
+            holdout_by_load_block(&one).iter().filter(|h| **h).count(),
+            3
+        );
     }
 }

@@ -1,0 +1,170 @@
+//! The diagnosis' report: its structure, the summary on stdout and the one
+//! function that writes files.
+
+use std::path::Path;
+
+use pam_core::{Effects, Params};
+use serde::Serialize;
+
+use super::candidates::CandidateResult;
+use super::evaluate::ModelErrors;
+use super::regimes::Regimes;
+use crate::data::Record;
+
+/// One round of candidate selection.
+#[derive(Clone, Debug, Serialize)]
+pub struct Round {
+    /// Held-out RMS of the model the round started from.
+    pub rms_start: f64,
+    /// Every candidate tried.
+    pub candidates: Vec<CandidateResult>,
+    /// The effect added, if any earned it.
+    pub added: Option<&'static str>,
+}
+
+/// The outcome of a diagnosis.
+#[derive(Clone, Debug, Serialize)]
+pub struct DiagnoseReport {
+    /// The record diagnosed.
+    pub source: String,
+    /// Effects added, in order (empty: `none`).
+    pub effects_added: Vec<&'static str>,
+    /// What was named: the first effect added, or `none`.
+    pub named: &'static str,
+    /// Held-out RMS contraction error of the base model.
+    pub rms_before: f64,
+    /// The same after the additions.
+    pub rms_after: f64,
+    /// First round's candidates against the base model: name and held-out RMS.
+    pub candidates: Vec<CandidateSummary>,
+    /// Every round in full.
+    pub rounds: Vec<Round>,
+    /// The base model's errors.
+    pub base: ModelErrors,
+    /// The final model's errors.
+    pub after: ModelErrors,
+    /// Held-out RMS of the paper's model as `fit::fit` gives it, before the
+    /// base refit on the simulated record.
+    pub rms_paper_fit: f64,
+    /// The base model's parameters (after its refit).
+    pub base_params: Params,
+    /// The final model's base parameters (refitted jointly with its effects).
+    pub final_params: Params,
+    /// The final model's effects.
+    pub effects: Effects,
+    /// Samples held out and trained on.
+    pub heldout_samples: usize,
+    /// Training samples.
+    pub train_samples: usize,
+    /// Correlation length of the base residual, samples.
+    pub correlation_length: f64,
+    /// The evidence rule's thresholds.
+    pub min_improvement: f64,
+    /// BIC threshold.
+    pub min_bic_drop: f64,
+    /// Predicted contraction of the base and final models (not serialised).
+    #[serde(skip)]
+    pub predicted_base: Vec<f64>,
+    /// Final model prediction (not serialised).
+    #[serde(skip)]
+    pub predicted_after: Vec<f64>,
+    /// Held-out mask (not serialised).
+    #[serde(skip)]
+    pub heldout: Vec<bool>,
+    /// Regimes (not serialised).
+    #[serde(skip)]
+    pub regimes: Regimes,
+}
+
+/// A candidate's name and held-out RMS (first round).
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateSummary {
+    /// Effect name.
+    pub name: &'static str,
+    /// Held-out RMS contraction error with it added to the base model.
+    pub rms: f64,
+}
+
+/// A short summary a person can read.
+pub fn summary(r: &DiagnoseReport) -> String {
+    let mut s = String::new();
+    let pct = |x: f64| 100.0 * x;
+    s.push_str(&format!(
+        "diagnose {}: {} training / {} held-out samples (load blocks alternate)\n",
+        r.source, r.train_samples, r.heldout_samples
+    ));
+    s.push_str(&format!(
+        "base model (paper): held-out RMS contraction error {:.5}\n",
+        r.rms_before
+    ));
+    let worst = r
+        .base
+        .regimes
+        .iter()
+        .filter(|g| g.samples > 0)
+        .max_by(|a, b| a.rms.total_cmp(&b.rms));
+    if let Some(w) = worst {
+        s.push_str(&format!(
+            "  largest disagreement: {} (RMS {:.5} over {} held-out samples)\n",
+            w.regime, w.rms, w.samples
+        ));
+    }
+    for (k, round) in r.rounds.iter().enumerate() {
+        s.push_str(&format!(
+            "round {}: candidates against RMS {:.5}\n",
+            k + 1,
+            round.rms_start
+        ));
+        for c in &round.candidates {
+            s.push_str(&format!(
+                "  {:<22} RMS {:.5}  ({:+.1} %, BIC drop {:>8.1}, {} in {}: {:.5} -> {:.5}){}\n",
+                c.name,
+                c.rms,
+                -pct(c.improvement),
+                c.bic_drop,
+                c.parameters,
+                c.signature.regime,
+                c.signature.rms_before,
+                c.signature.rms_after,
+                if c.earned { "  earns it" } else { "" }
+            ));
+        }
+        match round.added {
+            Some(n) => s.push_str(&format!("  -> added {n}\n")),
+            None => s.push_str("  -> no candidate earns its parameters\n"),
+        }
+    }
+    s.push_str(&format!(
+        "named: {}; effects added: [{}]\nheld-out RMS {:.5} -> {:.5} ({:.1} % lower)\n",
+        r.named,
+        r.effects_added.join(", "),
+        r.rms_before,
+        r.rms_after,
+        pct(1.0 - r.rms_after / r.rms_before)
+    ));
+    s
+}
+
+/// The files [`write_outputs`] writes into its directory.
+pub const OUTPUT_FILES: [&str; 3] = ["report.json", "residual.png", "loops.png"];
+
+/// Write every output of the diagnosis into `dir`: `report.json`,
+/// `residual.png` and `loops.png` ([`OUTPUT_FILES`]). This is the only
+/// function of the diagnosis that writes files; each is written to a
+/// temporary file and renamed ([`crate::atomic`]), and an error names the
+/// path.
+pub fn write_outputs(r: &DiagnoseReport, record: &Record, dir: &Path) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+    let mut json = serde_json::to_string_pretty(r).context("serialising report.json")?;
+    json.push('\n');
+    crate::atomic::write_bytes(&dir.join(OUTPUT_FILES[0]), json.as_bytes())?;
+    crate::atomic::write_via_path(&dir.join(OUTPUT_FILES[1]), |p| {
+        crate::diagnose_plot::residual_plot(r, record, p)
+    })?;
+    crate::atomic::write_via_path(&dir.join(OUTPUT_FILES[2]), |p| {
+        crate::diagnose_plot::loops_plot(r, record, p)
+    })?;
+    Ok(())
+}
