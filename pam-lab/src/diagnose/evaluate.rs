@@ -6,6 +6,7 @@ use serde::Serialize;
 use super::regimes::Regimes;
 use super::MEMORY_DEPTH;
 use crate::data::Sample;
+use crate::stats::rms_where;
 
 /// Simulate the model (base `coeffs` plus `effects`) over `samples` from the
 /// measured pressure and load, on the given branches (see
@@ -28,44 +29,6 @@ pub fn simulate(
             f64::from(sim.step_on_branch(s.t_s as f32, s.pressure_mpa as f32, s.load_n as f32, b))
         })
         .collect()
-}
-
-fn rms_where(res: &[f64], mask: impl Fn(usize) -> bool) -> (f64, usize) {
-    let (mut s, mut k) = (0.0, 0usize);
-    for (i, r) in res.iter().enumerate() {
-        if mask(i) && r.is_finite() {
-            s += r * r;
-            k += 1;
-        }
-    }
-    if k == 0 {
-        (f64::NAN, 0)
-    } else {
-        ((s / k as f64).sqrt(), k)
-    }
-}
-
-/// Correlation length of a residual series, samples: the first lag at which
-/// its autocorrelation falls below `1/e` (at least 1, at most 500).
-pub fn correlation_length(res: &[f64]) -> f64 {
-    let n = res.len();
-    if n < 4 {
-        return 1.0;
-    }
-    let mean = res.iter().sum::<f64>() / n as f64;
-    let var: f64 = res.iter().map(|r| (r - mean) * (r - mean)).sum::<f64>();
-    if var.is_nan() || var <= 0.0 {
-        return 1.0;
-    }
-    for lag in 1..500.min(n - 1) {
-        let c: f64 = (0..n - lag)
-            .map(|i| (res[i] - mean) * (res[i + lag] - mean))
-            .sum();
-        if c / var < (-1.0f64).exp() {
-            return lag as f64;
-        }
-    }
-    500.0
 }
 
 /// Errors of one model.
@@ -187,20 +150,5 @@ impl Setup<'_> {
             },
             res,
         )
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn correlation_length_of_white_noise_is_one_and_of_a_slow_signal_is_long() {
-        let white: Vec<f64> = (0..1000)
-            .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.5)
-            .collect();
-        assert!(correlation_length(&white) <= 2.0);
-        let slow: Vec<f64> = (0..2000).map(|i| (i as f64 / 200.0).sin()).collect();
-        assert!(correlation_length(&slow) > 50.0);
     }
 }

@@ -48,8 +48,9 @@ use pam_core::{Coeffs, Effects, TrackerConfig};
 use crate::data::{Record, Sample};
 use crate::fit::{FitConfig, Holdout};
 
+pub use crate::stats::{correlation_length, NoiseFloor};
 pub use candidates::{CandidateResult, EffectKind, Signature, RATE_EXPONENTS};
-pub use evaluate::{correlation_length, simulate, LoadError, ModelErrors, RegimeError};
+pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use refit::BASE_REFIT_FIELDS;
 pub use regimes::{hindsight_branches, regimes, Regimes, HOLD_SAMPLES};
 pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, Round};
@@ -212,7 +213,14 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     };
     let base_res = setup.residuals(Effects::NONE);
     let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| base_res[i]).collect();
-    setup.corr_len = correlation_length(&train_res);
+    let noise = crate::stats::noise_floor(&record.samples);
+    // The simulation's input noise passes the running median: correlated
+    // over its width, not beyond.
+    setup.corr_len = correlation_length(
+        &train_res,
+        noise.contraction,
+        2 * PRESSURE_MEDIAN_HALF_WIDTH + 1,
+    );
     let (paper_errors, _) = setup.errors(&setup.coeffs, Effects::NONE, 0);
     // The base the effects are judged against: the paper's model refitted
     // on the simulated training record by the same joint refit every
@@ -300,6 +308,9 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         effects_added: added,
         rms_before: base_errors.rms_heldout,
         rms_after: current_errors.rms_heldout,
+        noise,
+        above_noise_before: crate::stats::above_noise(base_errors.rms_heldout, noise.contraction),
+        above_noise_after: crate::stats::above_noise(current_errors.rms_heldout, noise.contraction),
         candidates,
         rounds,
         base: base_errors,

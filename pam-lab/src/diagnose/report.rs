@@ -35,6 +35,14 @@ pub struct DiagnoseReport {
     pub rms_before: f64,
     /// The same after the additions.
     pub rms_after: f64,
+    /// Measurement noise estimated from the record
+    /// ([`crate::stats::noise_floor`]); `contraction` is the floor no model
+    /// can go below on held-out data.
+    pub noise: crate::stats::NoiseFloor,
+    /// Model error above the noise before: `sqrt(rms_before² − noise²)`.
+    pub above_noise_before: f64,
+    /// The same after the additions.
+    pub above_noise_after: f64,
     /// First round's candidates against the base model: name and held-out RMS.
     pub candidates: Vec<CandidateSummary>,
     /// Every round in full.
@@ -74,6 +82,19 @@ pub struct DiagnoseReport {
     /// Regimes (not serialised).
     #[serde(skip)]
     pub regimes: Regimes,
+}
+
+impl DiagnoseReport {
+    /// Share of the model error above the noise that the added effects
+    /// removed: `1 − above_noise_after / above_noise_before` (0 when the
+    /// base is already at the noise).
+    pub fn share_removed(&self) -> f64 {
+        if self.above_noise_before > 0.0 {
+            1.0 - self.above_noise_after / self.above_noise_before
+        } else {
+            0.0
+        }
+    }
 }
 
 /// A candidate's name and held-out RMS (first round).
@@ -141,6 +162,14 @@ pub fn summary(r: &DiagnoseReport) -> String {
         r.rms_before,
         r.rms_after,
         pct(1.0 - r.rms_after / r.rms_before)
+    ));
+    s.push_str(&format!(
+        "noise floor {:.5} (from {} slow samples); error above it {:.5} -> {:.5} ({:.1} % removed)\n",
+        r.noise.contraction,
+        r.noise.samples,
+        r.above_noise_before,
+        r.above_noise_after,
+        pct(r.share_removed())
     ));
     s
 }
