@@ -396,30 +396,32 @@ mod noise_tests {
     }
 
     #[test]
-    fn correlation_length_of_white_noise_is_one_and_of_a_slow_signal_is_long() {
-        let white: Vec<f64> = (0..1000).map(gauss).collect();
-        assert!(correlation_length(&white, 0.0, 1) <= 2.0);
+    fn correlation_length_of_a_slow_signal_is_long_and_white_noise_has_no_length() {
         let slow: Vec<f64> = (0..2000).map(|i| (i as f64 / 200.0).sin()).collect();
         assert!(correlation_length(&slow, 0.0, 1) > 50.0);
+        // White noise has no systematic part: the maximum (little evidence),
+        // not one sample (every sample independent evidence).
+        let white: Vec<f64> = (0..1000).map(|i| 0.0008 * gauss(i)).collect();
+        for (noise, short) in [(0.0, 1), (0.0008, 1), (0.0008, 9)] {
+            assert_eq!(
+                correlation_length(&white, noise, short),
+                MAX_CORRELATION_LAG as f64
+            );
+        }
     }
 
     #[test]
     fn correlation_length_sees_a_slow_error_under_white_noise() {
-        // A slow error of 0.0005 under 0.0008 of white noise: the plain
-        // autocorrelation falls below 1/e at once, the one above the noise
-        // finds the slow part's length (about 200·acos(1/e) ≈ 240 samples).
+        // A slow error of 0.0005 under 0.0008 of white noise: normalised by
+        // the lag-0 variance the autocorrelation falls below 1/e at once;
+        // the systematic part's length is about 200·acos(1/e) ≈ 240 samples.
         let r: Vec<f64> = (0..6000)
             .map(|i| 0.0005 * (i as f64 / 200.0).sin() + 0.0008 * gauss(i))
             .collect();
-        assert!(correlation_length(&r, 0.0, 1) <= 3.0);
-        let with = correlation_length(&r, 0.0008, 9);
-        assert!((150.0..=350.0).contains(&with), "{with}");
-        // Pure noise has no systematic part: little evidence.
-        let white: Vec<f64> = (0..1000).map(|i| 0.0008 * gauss(i)).collect();
-        assert_eq!(
-            correlation_length(&white, 0.0008, 9),
-            MAX_CORRELATION_LAG as f64
-        );
+        for (noise, short) in [(0.0, 1), (0.0008, 1), (0.0008, 9)] {
+            let len = correlation_length(&r, noise, short);
+            assert!((150.0..=350.0).contains(&len), "{noise} {short}: {len}");
+        }
     }
 
     #[test]
