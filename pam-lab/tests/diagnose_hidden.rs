@@ -21,7 +21,7 @@ mod support;
 use pam_lab::diagnose::{diagnose, DiagnoseConfig, DiagnoseReport};
 use std::sync::OnceLock;
 
-use support::hidden_plants::{csv, Plant};
+use support::hidden_plants::{csv, csv_b, Plant};
 
 fn run(plant: Plant, seed: u64) -> DiagnoseReport {
     let dir = tempfile::tempdir().unwrap();
@@ -121,4 +121,26 @@ fn rate_law_is_sub_linear_like_the_plant() {
 #[test]
 fn load_dependent_width_halves_the_error() {
     halves(Plant::Width);
+}
+
+/// Not a check: writes every plant's record under both protocols, for
+/// seeds 1–`PAM_HIDDEN_SEEDS` (default 3), into `PAM_HIDDEN_OUT` (default
+/// `target/hidden-plants`), named `PROTOCOL_PLANT_SEED.csv`, so that the
+/// CLI can be run on them (DIAGNOSE.md gives the command).
+#[test]
+#[ignore]
+fn write_hidden_plant_records() {
+    let out = std::env::var("PAM_HIDDEN_OUT").unwrap_or_else(|_| "target/hidden-plants".into());
+    let seeds: u64 = std::env::var("PAM_HIDDEN_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3);
+    std::fs::create_dir_all(&out).unwrap();
+    for seed in 1..=seeds {
+        for plant in Plant::ALL {
+            let name = plant.expected_name();
+            std::fs::write(format!("{out}/a_{name}_{seed}.csv"), csv(plant, seed, true)).unwrap();
+            std::fs::write(format!("{out}/b_{name}_{seed}.csv"), csv_b(plant, seed)).unwrap();
+        }
+    }
 }

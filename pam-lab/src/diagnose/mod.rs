@@ -52,7 +52,7 @@ pub use crate::stats::{correlation_length, NoiseFloor};
 pub use candidates::{CandidateResult, EffectKind, Signature, RATE_EXPONENTS};
 pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use refit::BASE_REFIT_FIELDS;
-pub use regimes::{hindsight_branches, regimes, Regimes, HOLD_SAMPLES};
+pub use regimes::{hindsight_branches, regimes, Regimes};
 pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, Round};
 
 use candidates::evaluate_candidate;
@@ -200,7 +200,8 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     );
     let train_idx: Vec<usize> = (0..samples.len()).filter(|&i| !heldout[i]).collect();
     let regimes = regimes(samples, &coeffs, tracker);
-    let branches = hindsight_branches(samples, &coeffs, tracker);
+    let noise = crate::stats::noise_floor(&record.samples);
+    let branches = hindsight_branches(samples, &coeffs, tracker, noise.contraction);
     let mut setup = Setup {
         samples,
         coeffs,
@@ -213,7 +214,6 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     };
     let base_res = setup.residuals(Effects::NONE);
     let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| base_res[i]).collect();
-    let noise = crate::stats::noise_floor(&record.samples);
     // The simulation's input noise passes the running median: correlated
     // over its width, not beyond.
     setup.corr_len = correlation_length(

@@ -4,24 +4,116 @@ use pam_core::{Branch, Coeffs, Tracker, TrackerConfig};
 
 use crate::data::Sample;
 
-/// Samples the pressure must stay within the tracker's deadband of a
-/// sweep's extreme for [`hindsight_branches`] to treat it as a hold (1 s at
-/// 50 Hz).
-pub const HOLD_SAMPLES: usize = 50;
+/// Where the muscle turned within a run `a..=b` of samples whose pressure
+/// stays within `band` of a sweep's extreme: at a turn (a peak of a ramp,
+/// a triangle's corner, a sinusoid's smooth top, whatever the rate) the run
+/// is curved, and the turn is the vertex of a parabola fitted to it; in a
+/// hold the run is flat, and the muscle turns only when the pressure leaves
+/// it, at the run's last sample. The run counts as curved when the fitted
+/// parabola falls by at least half the band from its vertex to the run's
+/// ends, the right way round for `branch` (the branch the run ends), with
+/// the vertex inside the run.
+///
+/// Why not a time limit: a slow sinusoid stays within the band of its top
+/// for longer than a short hold does (0.4 s at a 16 s period), so a fixed
+/// hold duration puts the turn late at every smooth peak; the curvature
+/// tells the two apart at any rate and sample rate.
+fn turn_in_run(p: &[f64], a: usize, b: usize, band: f64, branch: Branch) -> usize {
+    if b <= a + 3 {
+        return (a + b) / 2;
+    }
+    let mid = 0.5 * (a + b) as f64;
+    // Least squares of p = c0 + c1·t + c2·t², t in samples from the middle.
+    let mut m = nalgebra::Matrix3::<f64>::zeros();
+    let mut v = nalgebra::Vector3::<f64>::zeros();
+    for (j, &pj) in p.iter().enumerate().take(b + 1).skip(a) {
+        let t = j as f64 - mid;
+        let basis = nalgebra::Vector3::new(1.0, t, t * t);
+        m += basis * basis.transpose();
+        v += basis * pj;
+    }
+    let Some(c) = m.lu().solve(&v) else {
+        return b;
+    };
+    let half = 0.5 * (b - a) as f64;
+    let drop = c[2].abs() * half * half;
+    // A maximum ends a contraction sweep (the next branch is expansion).
+    let right_way = match branch {
+        Branch::Expansion => c[2] < 0.0,
+        Branch::Contraction => c[2] > 0.0,
+    };
+    let vertex = mid - c[1] / (2.0 * c[2]);
+    if right_way && drop >= 0.5 * band && vertex >= a as f64 && vertex <= b as f64 {
+        vertex.round() as usize
+    } else {
+        b
+    }
+}
+
+/// How far from the turn found from the pressure [`hindsight_branches`]
+/// looks for the measured contraction's jump, s.
+pub const JUMP_SEARCH_S: f64 = 0.06;
+
+/// The sample before the largest significant contraction step the right way
+/// for a switch onto `to` within [`JUMP_SEARCH_S`] of `turn` (and inside
+/// `lo..hi`), if any.
+fn jump_near(
+    samples: &[Sample],
+    turn: usize,
+    lo: usize,
+    hi: usize,
+    to: Branch,
+    noise: f64,
+) -> Option<usize> {
+    if !(noise > 0.0) || hi < 2 {
+        return None;
+    }
+    let dt = samples
+        .get(turn + 1)
+        .zip(samples.get(turn))
+        .map_or(0.02, |(b, a)| (b.t_s - a.t_s).abs().max(1e-4));
+    let w = ((JUMP_SEARCH_S / dt).round() as usize).max(2);
+    let (a, b) = (turn.saturating_sub(w).max(lo), (turn + w).min(hi - 1));
+    let sign = match to {
+        Branch::Expansion => 1.0,
+        Branch::Contraction => -1.0,
+    };
+    (a..b)
+        .map(|j| {
+            (
+                j,
+                sign * (samples[j + 1].contraction - samples[j].contraction),
+            )
+        })
+        .filter(|(_, d)| *d > 6.0 * noise)
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .map(|(j, _)| j)
+}
 
 /// The branch of every sample with hindsight: the tracker's reversals
 /// (deadband `tracker.direction_deadband`) moved back to the extreme of
 /// the sweep they end, where the muscle really turned.
+///
+/// Where the measured contraction shows the jump the paper's model makes at
+/// a switch — a step between two samples larger than six noise sigmas
+/// (`contraction_noise`), the right way for the branch it switches to
+/// (up onto the expansion branch, down onto the contraction branch),
+/// within [`JUMP_SEARCH_S`] of the turn found from the pressure — the
+/// switch is put at that step: the pressure noise alone places a turn a
+/// few samples either way, and on a steep muscle every sample on the wrong
+/// branch is an error of the whole branch gap.
 pub fn hindsight_branches(
     samples: &[Sample],
     coeffs: &Coeffs,
     tracker: TrackerConfig,
+    contraction_noise: f64,
 ) -> Vec<Branch> {
     let n = samples.len();
     let first_load = samples.first().map_or(0.0, |s| s.load_n) as f32;
     let Ok(mut t) = Tracker::new(coeffs, tracker, first_load, Branch::Contraction) else {
         return vec![Branch::Contraction; n];
     };
+    let pressure: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
     let mut out = Vec::with_capacity(n);
     let mut sweep_start = 0usize;
     let mut extreme_at = 0usize;
@@ -29,35 +121,24 @@ pub fn hindsight_branches(
         let before = t.branch();
         t.update(coeffs, s.pressure_mpa as f32, s.load_n as f32);
         if t.branch() != before {
-            // The turn was where the pressure last left its extreme (within
-            // a third of the deadband, the filtered noise, on a ramp). After
-            // a hold (the pressure within the deadband of its extreme for at
-            // least `HOLD_SAMPLES`) it is the hold's last sample: the hold's
-            // noise dips below a third of the deadband often, and turning
-            // at such a dip starts the other branch early, seconds before a
-            // step.
+            // The samples within the deadband of the sweep's extreme (the
+            // median-filtered noise stays inside it) around its last visit:
+            // where the muscle turned is in that run (`turn_in_run`).
             let e = samples[extreme_at].pressure_mpa;
             let band = f64::from(tracker.direction_deadband);
-            let near = |j: usize, tol: f64| (samples[j].pressure_mpa - e).abs() <= tol;
-            let last_in_band = (sweep_start..i).rev().find(|&j| near(j, band));
-            let held = last_in_band.is_some_and(|j| {
-                j >= sweep_start + HOLD_SAMPLES && (j - HOLD_SAMPLES..=j).all(|k| near(k, band))
-            });
-            // On a ramp the running median flattens the peak into a short
-            // plateau around the true turn: take the middle of the samples
-            // within a third of the deadband (the last of them turns a few
-            // samples late, a one-sample spike of the branch gap).
-            let turn = match last_in_band {
-                Some(j) if held => j,
-                _ => {
-                    let last = (sweep_start..i).rev().find(|&j| near(j, band / 3.0));
-                    let first = (sweep_start..i).find(|&j| near(j, band / 3.0));
-                    match (first, last) {
-                        (Some(a), Some(b)) => (a + b) / 2,
-                        _ => extreme_at,
+            let near = |j: usize| (samples[j].pressure_mpa - e).abs() <= band;
+            let turn = match (sweep_start..i).rev().find(|&j| near(j)) {
+                Some(last) => {
+                    let mut first = last.min(extreme_at);
+                    while first > sweep_start && near(first - 1) {
+                        first -= 1;
                     }
+                    turn_in_run(&pressure, first, last, band, t.branch())
                 }
+                None => extreme_at,
             };
+            let turn = jump_near(samples, turn, sweep_start, i, t.branch(), contraction_noise)
+                .unwrap_or(turn);
             for b in out.iter_mut().take(i).skip(turn + 1) {
                 *b = t.branch();
             }
