@@ -118,6 +118,10 @@ pub fn denoise_pressure(samples: &[Sample], half: usize) -> Vec<Sample> {
         .collect()
 }
 
+/// One in how many segments (cycles, cut at load changes) is held out
+/// ([`crate::split::holdout_by_segment`]).
+pub const HOLDOUT_EVERY: usize = 3;
+
 /// Why a diagnosis failed.
 #[derive(Debug, thiserror::Error)]
 pub enum DiagnoseError {
@@ -164,7 +168,9 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     let denoised = denoise_pressure(samples, PRESSURE_MEDIAN_HALF_WIDTH);
     let samples = &denoised;
     let loads: Vec<f64> = samples.iter().map(|s| s.load_n).collect();
-    let heldout = crate::split::holdout_by_load_block(&loads);
+    let split = crate::split::split_branches(samples, &crate::split::SplitConfig::default());
+    let heldout = crate::split::holdout_by_segment(&loads, &split.cycle, HOLDOUT_EVERY);
+    let extrapolated = crate::split::extrapolated(&loads, &heldout);
     let train: Vec<Sample> = record
         .samples
         .iter()
@@ -176,6 +182,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     let mut fit_cfg = cfg.fit.clone();
     fit_cfg.holdout = Holdout::None;
     let fit = crate::fit::fit(&train_record, &fit_cfg)?;
+
     // The held-out blocks may go beyond the training loads (the examples'
     // random loads reach 350 N, the training blocks 300 N): widen the
     // calibrated range to the record's so the load family extrapolates
@@ -309,6 +316,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         rms_before: base_errors.rms_heldout,
         rms_after: current_errors.rms_heldout,
         noise,
+        extrapolated_samples: extrapolated,
         above_noise_before: crate::stats::above_noise(base_errors.rms_heldout, noise.contraction),
         above_noise_after: crate::stats::above_noise(current_errors.rms_heldout, noise.contraction),
         candidates,

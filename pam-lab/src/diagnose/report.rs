@@ -39,6 +39,9 @@ pub struct DiagnoseReport {
     /// ([`crate::stats::noise_floor`]); `contraction` is the floor no model
     /// can go below on held-out data.
     pub noise: crate::stats::NoiseFloor,
+    /// Held-out samples at loads beyond the training loads (their error is
+    /// partly the load family's extrapolation).
+    pub extrapolated_samples: usize,
     /// Model error above the noise before: `sqrt(rms_before² − noise²)`.
     pub above_noise_before: f64,
     /// The same after the additions.
@@ -111,13 +114,19 @@ pub fn summary(r: &DiagnoseReport) -> String {
     let mut s = String::new();
     let pct = |x: f64| 100.0 * x;
     s.push_str(&format!(
-        "diagnose {}: {} training / {} held-out samples (load blocks alternate)\n",
+        "diagnose {}: {} training / {} held-out samples (every 3rd cycle of each load held out)\n",
         r.source, r.train_samples, r.heldout_samples
     ));
     s.push_str(&format!(
         "base model (paper): held-out RMS contraction error {:.5}\n",
         r.rms_before
     ));
+    if r.extrapolated_samples > 0 {
+        s.push_str(&format!(
+            "  {} held-out samples lie beyond the training loads: their error includes the load family's extrapolation\n",
+            r.extrapolated_samples
+        ));
+    }
     let worst = r
         .base
         .regimes
