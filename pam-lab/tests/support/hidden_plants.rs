@@ -46,17 +46,39 @@ pub enum Plant {
     Creep,
     /// Loop height grows with load.
     Width,
+    /// Two effects at once: the width plant's load law and the creep
+    /// plant's two lags.
+    WidthAndCreep,
+    /// Two effects at once: the memory plant's friction, its height growing
+    /// with the pressure rate as in the rate plant.
+    MemoryAndRate,
 }
 
 impl Plant {
     /// Every plant.
-    pub const ALL: [Plant; 5] = [
+    pub const ALL: [Plant; 7] = [
         Plant::None,
         Plant::NonLocalMemory,
         Plant::Rate,
         Plant::Creep,
         Plant::Width,
+        Plant::WidthAndCreep,
+        Plant::MemoryAndRate,
     ];
+
+    /// Every effect the rig has, by the names `pam-lab diagnose` gives them
+    /// (empty: none).
+    pub fn expected_effects(self) -> &'static [&'static str] {
+        match self {
+            Plant::None => &[],
+            Plant::NonLocalMemory => &["non_local_memory"],
+            Plant::Rate => &["rate_dependence"],
+            Plant::Creep => &["creep"],
+            Plant::Width => &["load_dependent_width"],
+            Plant::WidthAndCreep => &["load_dependent_width", "creep"],
+            Plant::MemoryAndRate => &["non_local_memory", "rate_dependence"],
+        }
+    }
 
     /// The name `pam-lab diagnose` should give it.
     pub fn expected_name(self) -> &'static str {
@@ -66,6 +88,8 @@ impl Plant {
             Plant::Rate => "rate_dependence",
             Plant::Creep => "creep",
             Plant::Width => "load_dependent_width",
+            Plant::WidthAndCreep => "load_dependent_width+creep",
+            Plant::MemoryAndRate => "non_local_memory+rate_dependence",
         }
     }
 }
@@ -216,6 +240,13 @@ fn params_for(plant: Plant) -> Params {
         Plant::Width => {
             p.root_regression_per_step = 0.004;
         }
+        Plant::WidthAndCreep => {
+            p.root_regression_per_step = 0.003;
+            p.points.inflection.pressure_mpa = 0.27;
+        }
+        Plant::MemoryAndRate => {
+            p.points.max_contraction = 0.26;
+        }
     }
     p
 }
@@ -255,23 +286,24 @@ fn respond_with(plant: Plant, params: Params, drive: &[(f64, f64, f64)]) -> Vec<
         }
         last_p = p;
         rate += (dp / dt - rate) * (dt / (0.1 + dt));
+        let rate_be = (0.010 + 0.0926 * rate.abs().powf(0.7)).min(0.1);
+        let mut friction = || {
+            let mut f = 0.0;
+            for (y, r) in plays.iter_mut().zip(&thresholds) {
+                *y = y.clamp(p - r, p + r);
+                f += p - *y;
+            }
+            f / full_friction
+        };
+        let width_be = 0.008 * (load / 100.0).powf(1.3);
         let x = match plant {
             Plant::None | Plant::Creep => m.branch_x(load, p, sign, be0),
-            Plant::Width => m.branch_x(load, p, sign, 0.008 * (load / 100.0).powf(1.3)),
-            Plant::Rate => {
-                let be = (0.010 + 0.0926 * rate.abs().powf(0.7)).min(0.1);
-                m.branch_x(load, p, sign, be)
-            }
-            Plant::NonLocalMemory => {
-                let mut friction = 0.0;
-                for (y, r) in plays.iter_mut().zip(&thresholds) {
-                    *y = y.clamp(p - r, p + r);
-                    friction += p - *y;
-                }
-                m.branch_x(load, p, 1.0, be0 * friction / full_friction)
-            }
+            Plant::Width | Plant::WidthAndCreep => m.branch_x(load, p, sign, width_be),
+            Plant::Rate => m.branch_x(load, p, sign, rate_be),
+            Plant::NonLocalMemory => m.branch_x(load, p, 1.0, be0 * friction()),
+            Plant::MemoryAndRate => m.branch_x(load, p, 1.0, 1.5 * rate_be * friction()),
         };
-        let x = if plant == Plant::Creep {
+        let x = if matches!(plant, Plant::Creep | Plant::WidthAndCreep) {
             let dx = last_static.map_or(0.0, |s| x - s);
             last_static = Some(x);
             let mut out_x = x;
