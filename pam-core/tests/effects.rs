@@ -33,6 +33,8 @@ fn all_effects() -> Effects {
         shape: Some(ConstraintShape {
             bulge: 0.3,
             tilt: -0.2,
+            bulge_per_step: 0.05,
+            tilt_per_step: 0.0,
         }),
     }
 }

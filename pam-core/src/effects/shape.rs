@@ -20,6 +20,7 @@
 use crate::error::Error;
 use crate::load_model::LoadModel;
 use crate::math::clamp;
+use crate::params::Params;
 
 /// Largest `|bulge| + |tilt|`: the corrected curve's slope along the stroke
 /// stays at least `1 − MAX_SHAPE_SLOPE` of the model's.
@@ -39,6 +40,10 @@ pub struct ConstraintShape {
     /// Antisymmetric part: positive moves the upper half of the stroke up
     /// and the lower half down.
     pub tilt: f32,
+    /// Change of `bulge` per load step `ΔL` (`Params::load_step_n`).
+    pub bulge_per_step: f32,
+    /// Change of `tilt` per load step.
+    pub tilt_per_step: f32,
 }
 
 impl ConstraintShape {
@@ -46,7 +51,34 @@ impl ConstraintShape {
     pub const NEUTRAL: ConstraintShape = ConstraintShape {
         bulge: 0.0,
         tilt: 0.0,
+        bulge_per_step: 0.0,
+        tilt_per_step: 0.0,
     };
+
+    /// The shape at `load_n` (no load dependence left). Where the load
+    /// terms carry `|bulge| + |tilt|` beyond [`MAX_SHAPE_SLOPE`] both are
+    /// scaled down to it, so the map stays increasing at every load; a
+    /// non-finite load gives the shape at the minimum load.
+    pub fn at_load(&self, params: &Params, load_n: f32) -> ConstraintShape {
+        let steps = (load_n - params.min_load_n) / params.load_step_n;
+        let steps = if steps.is_finite() { steps } else { 0.0 };
+        let b = self.bulge + self.bulge_per_step * steps;
+        let t = self.tilt + self.tilt_per_step * steps;
+        let sum = b.abs() + t.abs();
+        let k = if sum > MAX_SHAPE_SLOPE && sum.is_finite() {
+            MAX_SHAPE_SLOPE / sum
+        } else if sum.is_finite() {
+            1.0
+        } else {
+            0.0
+        };
+        ConstraintShape {
+            bulge: b * k,
+            tilt: t * k,
+            bulge_per_step: 0.0,
+            tilt_per_step: 0.0,
+        }
+    }
 
     /// Finite, `|bulge| + |tilt| ≤ MAX_SHAPE_SLOPE` (strictly increasing).
     pub fn validate(&self) -> Result<(), Error> {
@@ -55,6 +87,20 @@ impl ConstraintShape {
         }
         if !self.tilt.is_finite() {
             return Err(Error::NonFinite("shape.tilt"));
+        }
+        if !self.bulge_per_step.is_finite() {
+            return Err(Error::NonFinite("shape.bulge_per_step"));
+        }
+        if !self.tilt_per_step.is_finite() {
+            return Err(Error::NonFinite("shape.tilt_per_step"));
+        }
+        if !(self.bulge_per_step.abs() <= MAX_SHAPE_SLOPE
+            && self.tilt_per_step.abs() <= MAX_SHAPE_SLOPE)
+        {
+            return Err(Error::OutOfRange(
+                "shape.bulge_per_step",
+                "per-step terms must be within +-MAX_SHAPE_SLOPE",
+            ));
         }
         // A rounding's tolerance: the map is increasing up to a sum of 1.
         if !(self.bulge.abs() + self.tilt.abs() <= MAX_SHAPE_SLOPE + 1e-6) {
@@ -71,7 +117,8 @@ impl ConstraintShape {
         u + u * (1.0 - u) * (self.bulge + self.tilt * (2.0 * u - 1.0))
     }
 
-    /// The muscle's contraction where `model` predicts `contraction`.
+    /// The muscle's contraction where `model` predicts `contraction`, with
+    /// the shape at the minimum load (see [`Self::at_load`] for the rest).
     ///
     /// The input is clamped to the model's stroke `[R, Rx]` (NaN → `R`), and
     /// so is the result (the map keeps the stroke ends).
@@ -122,7 +169,6 @@ impl ConstraintShape {
 mod tests {
     use super::*;
     use crate::coeffs::Coeffs;
-    use crate::params::Params;
 
     fn model() -> LoadModel {
         Coeffs::new(Params::DEFAULT)
@@ -141,6 +187,7 @@ mod tests {
         let s = ConstraintShape {
             bulge: 0.5,
             tilt: -0.3,
+            ..ConstraintShape::NEUTRAL
         };
         assert!((s.apply(&m, r) - r).abs() < 1e-6);
         assert!((s.apply(&m, rx) - rx).abs() < 1e-6);
@@ -160,7 +207,11 @@ mod tests {
             (-0.3, -0.6),
             (0.0, 0.9),
         ] {
-            let s = ConstraintShape { bulge, tilt };
+            let s = ConstraintShape {
+                bulge,
+                tilt,
+                ..ConstraintShape::NEUTRAL
+            };
             assert!(s.validate().is_ok());
             let mut last = f32::NEG_INFINITY;
             for k in 0..=200 {
@@ -174,6 +225,24 @@ mod tests {
     }
 
     #[test]
+    fn load_terms_are_linear_in_load_steps_and_kept_increasing() {
+        let p = Params::DEFAULT;
+        let s = ConstraintShape {
+            bulge: 0.2,
+            tilt: 0.1,
+            bulge_per_step: 0.1,
+            tilt_per_step: -0.05,
+        };
+        assert!(s.validate().is_ok());
+        let at = s.at_load(&p, p.min_load_n + 2.0 * p.load_step_n);
+        assert!((at.bulge - 0.4).abs() < 1e-6 && at.tilt.abs() < 1e-6);
+        assert_eq!(s.at_load(&p, f32::NAN).bulge, 0.2);
+        let far = s.at_load(&p, 1e9);
+        assert!(far.bulge.abs() + far.tilt.abs() <= MAX_SHAPE_SLOPE + 1e-6);
+        assert!(far.validate().is_ok());
+    }
+
+    #[test]
     fn out_of_range_and_non_finite_are_refused_and_inputs_clamped() {
         for (bulge, tilt) in [
             (0.6, 0.6),
@@ -181,12 +250,18 @@ mod tests {
             (0.0, f32::INFINITY),
             (-1.0, 0.0),
         ] {
-            assert!(ConstraintShape { bulge, tilt }.validate().is_err());
+            let s = ConstraintShape {
+                bulge,
+                tilt,
+                ..ConstraintShape::NEUTRAL
+            };
+            assert!(s.validate().is_err());
         }
         let m = model();
         let s = ConstraintShape {
             bulge: 0.4,
             tilt: 0.2,
+            ..ConstraintShape::NEUTRAL
         };
         for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -5.0, 5.0] {
             let y = s.apply(&m, x);
@@ -205,6 +280,8 @@ mod tests {
         let shape = ConstraintShape {
             bulge: 0.4,
             tilt: 0.1,
+            bulge_per_step: -0.1,
+            tilt_per_step: 0.0,
         };
         let with = Effects {
             shape: Some(shape),
@@ -220,7 +297,8 @@ mod tests {
             let t = k as f32 * 0.02;
             let x = plain.step(t, p, 200.0);
             let y = corrected.step(t, p, 200.0);
-            assert!((y - shape.apply(&m, x)).abs() < 1e-6, "{k}");
+            let at = shape.at_load(coeffs.params(), 200.0);
+            assert!((y - at.apply(&m, x)).abs() < 1e-6, "{k}");
             moved = moved.max((y - x).abs());
         }
         assert!(moved > 0.01, "{moved}");

@@ -5,7 +5,10 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use pam_core::effects::memory::MIN_MERGE_SPAN;
 use pam_core::effects::rate::RATE_EXPONENT_RANGE;
-use pam_core::effects::{Creep, LoadDependentWidth, NonLocalMemory, RateDependence};
+use pam_core::effects::shape::MAX_SHAPE_SLOPE;
+use pam_core::effects::{
+    ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
+};
 use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
 
@@ -25,15 +28,18 @@ pub enum EffectKind {
     Creep,
     /// Loop height linear in load ([`LoadDependentWidth`]).
     LoadDependentWidth,
+    /// A static curve outside the cubic family ([`ConstraintShape`]).
+    ConstraintShape,
 }
 
 impl EffectKind {
     /// Every candidate, in the order they are tried.
-    pub const ALL: [EffectKind; 4] = [
+    pub const ALL: [EffectKind; 5] = [
         EffectKind::NonLocalMemory,
         EffectKind::RateDependence,
         EffectKind::Creep,
         EffectKind::LoadDependentWidth,
+        EffectKind::ConstraintShape,
     ];
 
     /// The name used in reports.
@@ -43,6 +49,7 @@ impl EffectKind {
             EffectKind::RateDependence => "rate_dependence",
             EffectKind::Creep => "creep",
             EffectKind::LoadDependentWidth => "load_dependent_width",
+            EffectKind::ConstraintShape => "constraint_shape",
         }
     }
 
@@ -50,7 +57,7 @@ impl EffectKind {
     /// from [`RATE_EXPONENTS`] by the fit, counts as one).
     pub fn parameter_count(self) -> usize {
         match self {
-            EffectKind::RateDependence => 4,
+            EffectKind::RateDependence | EffectKind::ConstraintShape => 4,
             _ => 2,
         }
     }
@@ -60,6 +67,7 @@ impl EffectKind {
     fn free_count(self) -> usize {
         match self {
             EffectKind::RateDependence => 3,
+            EffectKind::ConstraintShape => 4,
             _ => 2,
         }
     }
@@ -71,6 +79,7 @@ impl EffectKind {
             EffectKind::RateDependence => "fast_ramp",
             EffectKind::Creep => "hold_after_step",
             EffectKind::LoadDependentWidth => "per_load",
+            EffectKind::ConstraintShape => "static_shape",
         }
     }
 
@@ -102,6 +111,7 @@ impl EffectKind {
                 vec![logit(0.1 / 0.95), 5.0f64.ln()],
             ],
             EffectKind::LoadDependentWidth => vec![vec![logit(1.0 / 4.0), 0.0]],
+            EffectKind::ConstraintShape => vec![vec![0.0; 4]],
         }
     }
 
@@ -143,6 +153,17 @@ impl EffectKind {
                     scale_per_step: (4.0 * t(1).tanh()) as f32,
                 })
             }
+            EffectKind::ConstraintShape => {
+                // Each within half the slope limit: their sum within it.
+                let half = 0.5 * f64::from(MAX_SHAPE_SLOPE);
+                // (`at_load` keeps the sum within it at every load.)
+                e.shape = Some(ConstraintShape {
+                    bulge: (half * t(0).tanh()) as f32,
+                    tilt: (half * t(1).tanh()) as f32,
+                    bulge_per_step: (half * t(2).tanh()) as f32,
+                    tilt_per_step: (half * t(3).tanh()) as f32,
+                })
+            }
         }
         e
     }
@@ -153,6 +174,7 @@ impl EffectKind {
             EffectKind::RateDependence => e.rate.is_some(),
             EffectKind::Creep => e.creep.is_some(),
             EffectKind::LoadDependentWidth => e.width.is_some(),
+            EffectKind::ConstraintShape => e.shape.is_some(),
         }
     }
 }
@@ -370,6 +392,7 @@ pub(super) fn evaluate_candidate(
                 // Per load: the worst load's RMS is where a width error shows.
                 e.loads.iter().map(|l| l.rms).fold(f64::NAN, f64::max)
             }
+            EffectKind::ConstraintShape => e.static_shape,
             _ => e
                 .regimes
                 .iter()

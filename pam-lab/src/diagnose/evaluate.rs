@@ -44,6 +44,12 @@ pub struct ModelErrors {
     pub regimes: Vec<RegimeError>,
     /// Held-out RMS per load.
     pub loads: Vec<LoadError>,
+    /// The held-out error that depends on the load and the position along
+    /// the stroke alone, both branches pooled: the RMS (weighted by
+    /// samples) of the mean residual per (load, stroke bin) cell. A static curve the
+    /// model cannot follow shows here; a loop-height or rate error, whose
+    /// sign flips between the branches, mostly cancels.
+    pub static_shape: f64,
 }
 
 /// RMS in one regime.
@@ -79,9 +85,64 @@ pub(super) struct Setup<'a> {
     pub(super) branches: Vec<Branch>,
     /// Effective-sample divisor: the base residual's correlation length.
     pub(super) corr_len: f64,
+    /// Each sample's bin of measured contraction along the record's stroke
+    /// ([`stroke_bins`]).
+    pub(super) stroke_bin: Vec<usize>,
+}
+
+/// Bins along the stroke of [`stroke_bins`].
+pub const STROKE_BINS: usize = 12;
+
+/// Each sample's bin of measured contraction: [`STROKE_BINS`] equal bins
+/// between the record's 1st and 99th percentiles (clamped to the end bins).
+pub fn stroke_bins(samples: &[Sample]) -> Vec<usize> {
+    let mut x: Vec<f64> = samples
+        .iter()
+        .map(|s| s.contraction)
+        .filter(|x| x.is_finite())
+        .collect();
+    if x.len() < 2 {
+        return vec![0; samples.len()];
+    }
+    x.sort_by(f64::total_cmp);
+    let q = |f: f64| x[((x.len() - 1) as f64 * f).round() as usize];
+    let (lo, hi) = (q(0.01), q(0.99));
+    let w = ((hi - lo) / STROKE_BINS as f64).max(1e-9);
+    samples
+        .iter()
+        .map(|s| {
+            let b = ((s.contraction - lo) / w).floor();
+            if b.is_finite() {
+                b.clamp(0.0, (STROKE_BINS - 1) as f64) as usize
+            } else {
+                0
+            }
+        })
+        .collect()
 }
 
 impl Setup<'_> {
+    fn static_shape(&self, res: &[f64]) -> f64 {
+        // Cells of (load, 25 N bins) × stroke bin; both branches pooled.
+        let mut cells: std::collections::HashMap<(i64, usize), (f64, usize)> =
+            std::collections::HashMap::new();
+        for (i, r) in res.iter().enumerate() {
+            if self.heldout[i] && r.is_finite() {
+                let load = (self.samples[i].load_n / 25.0).round() as i64;
+                let b = self.stroke_bin.get(i).copied().unwrap_or(0);
+                let c = cells.entry((load, b)).or_insert((0.0, 0));
+                c.0 += r;
+                c.1 += 1;
+            }
+        }
+        let total: usize = cells.values().map(|c| c.1).sum();
+        if total == 0 {
+            return f64::NAN;
+        }
+        let ss: f64 = cells.values().map(|(s, c)| s * s / *c as f64).sum();
+        (ss / total as f64).sqrt()
+    }
+
     pub(super) fn residuals(&self, effects: Effects) -> Vec<f64> {
         self.residuals_with(&self.coeffs, effects)
     }
@@ -140,6 +201,7 @@ impl Setup<'_> {
                 }
             })
             .collect();
+        let static_shape = self.static_shape(&res);
         (
             ModelErrors {
                 rms_heldout,
@@ -147,6 +209,7 @@ impl Setup<'_> {
                 bic,
                 regimes,
                 loads,
+                static_shape,
             },
             res,
         )

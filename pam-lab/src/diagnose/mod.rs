@@ -218,6 +218,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         regimes,
         branches,
         corr_len: 1.0,
+        stroke_bin: evaluate::stroke_bins(samples),
     };
     let base_res = setup.residuals(Effects::NONE);
     let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| base_res[i]).collect();

@@ -52,11 +52,15 @@ pub enum Plant {
     /// Two effects at once: the memory plant's friction, its height growing
     /// with the pressure rate as in the rate plant.
     MemoryAndRate,
+    /// A muscle outside the cubic family: the Tondu–Lopez static law
+    /// `F = p·S·(a·(1 − ε)² − b)` (a steep start, a saturating end) with
+    /// the memory plant's Prandtl–Ishlinskii friction.
+    TonduLopez,
 }
 
 impl Plant {
     /// Every plant.
-    pub const ALL: [Plant; 7] = [
+    pub const ALL: [Plant; 8] = [
         Plant::None,
         Plant::NonLocalMemory,
         Plant::Rate,
@@ -64,6 +68,7 @@ impl Plant {
         Plant::Width,
         Plant::WidthAndCreep,
         Plant::MemoryAndRate,
+        Plant::TonduLopez,
     ];
 
     /// Every effect the rig has, by the names `pam-lab diagnose` gives them
@@ -77,6 +82,7 @@ impl Plant {
             Plant::Width => &["load_dependent_width"],
             Plant::WidthAndCreep => &["load_dependent_width", "creep"],
             Plant::MemoryAndRate => &["non_local_memory", "rate_dependence"],
+            Plant::TonduLopez => &["constraint_shape", "non_local_memory"],
         }
     }
 
@@ -90,6 +96,7 @@ impl Plant {
             Plant::Width => "load_dependent_width",
             Plant::WidthAndCreep => "load_dependent_width+creep",
             Plant::MemoryAndRate => "non_local_memory+rate_dependence",
+            Plant::TonduLopez => "constraint_shape+non_local_memory",
         }
     }
 }
@@ -217,6 +224,18 @@ impl Muscle {
     }
 }
 
+/// Contraction of a Tondu–Lopez muscle holding `load` N at the effective
+/// pressure `q` MPa: the static law `load = q·S·(a·(1 − ε)² − b)` shifted so
+/// that `ε = 0` at `q = 0` (a pre-stretched muscle), solved for `ε`
+/// in closed form; `S` = 1500 N/MPa, `a` = 1.25, `b` = 0.75; plus a slack
+/// of 0.01.
+fn tondu_lopez_x(load: f64, q: f64) -> f64 {
+    let (s, a, b) = (1500.0, 1.25, 0.75);
+    let q = q.max(0.0);
+    let g = 1.0 / (q * s / load.max(1.0) + 1.0 / (a - b));
+    0.01 + 1.0 - ((b + g) / a).sqrt()
+}
+
 fn params_for(plant: Plant) -> Params {
     let mut p = Params::DEFAULT;
     // Steeper through the middle of the stroke than the default muscle (whose
@@ -247,6 +266,7 @@ fn params_for(plant: Plant) -> Params {
         Plant::MemoryAndRate => {
             p.points.max_contraction = 0.26;
         }
+        Plant::TonduLopez => {}
     }
     p
 }
@@ -302,6 +322,7 @@ fn respond_with(plant: Plant, params: Params, drive: &[(f64, f64, f64)]) -> Vec<
             Plant::Rate => m.branch_x(load, p, sign, rate_be),
             Plant::NonLocalMemory => m.branch_x(load, p, 1.0, be0 * friction()),
             Plant::MemoryAndRate => m.branch_x(load, p, 1.0, 1.5 * rate_be * friction()),
+            Plant::TonduLopez => tondu_lopez_x(load, p - 0.02 * friction()),
         };
         let x = if matches!(plant, Plant::Creep | Plant::WidthAndCreep) {
             let dx = last_static.map_or(0.0, |s| x - s);
