@@ -2,38 +2,43 @@
 //! disagree, name the missing effect, add it, and show the gap shrink.
 //!
 //! # Workflow
-//! 1. **Split.** The record is cut into load blocks (runs of one load). Odd
-//!    blocks are held out, even blocks train ([`holdout_by_load_block`]): with
-//!    the examples' protocol that trains on the 100 N and 300 N blocks and
-//!    holds out the 200 N block, so every regime (full and partial cycles,
-//!    three rates, steps and holds) is in both parts.
+//! 1. **Split** ([`crate::split::holdout_by_segment`]). The record is cut
+//!    into segments at every cycle start (the branch split shared with
+//!    `fit`) and every load change; one segment in [`HOLDOUT_EVERY`],
+//!    drawn by a fixed hash, is held out. No assumption about the protocol:
+//!    every load that recurs is in both parts, and held-out samples beyond
+//!    the training loads are counted and reported (`extrapolated_samples`).
 //! 2. **Base model.** The paper's model is fitted on the training part with
 //!    [`crate::fit::fit`], then the whole record is simulated from the
-//!    measured pressure and load with [`pam_core::Simulator`] (state carries
-//!    through the held-out parts), and the residual is located by regime
-//!    ([`Regimes`]: after reversals inside the loop, fast ramps, slow ramps,
-//!    holds after steps, and per load).
-//! 3. **Candidates.** Each effect of [`EffectKind`] is added in turn and only
-//!    its own parameters are fitted (Levenberg–Marquardt on the training
-//!    samples' contraction residuals, the base parameters fixed, a few
-//!    starts).
-//! 4. **Evidence rule.** A candidate earns its place when *both*
+//!    measured pressure (through a running median, [`denoise_pressure`]) and
+//!    load with [`pam_core::Simulator`] on branches known with hindsight
+//!    ([`hindsight_branches`]: a turn is a parabola's vertex or a hold's
+//!    end, the measured contraction's jump places the switch), and the
+//!    residual is located by regime ([`Regimes`]).
+//! 3. **Noise floor** ([`crate::stats::noise_floor`]): the measurement noise
+//!    from short-lag differences where the pressure moves slowest; the
+//!    report gives the error above it, `sqrt(rms² − noise²)`, before and
+//!    after, and the share the effects removed.
+//! 4. **Candidates.** Each effect of [`EffectKind`] is added in turn, its own
+//!    parameters fitted on the training samples, the base refitted jointly
+//!    with it, and its parameters once more.
+//! 5. **Evidence rule.** A candidate earns its place when
 //!    * its held-out RMS is at least [`DiagnoseConfig::min_improvement`]
 //!      (default 15 %) below the current model's, and
 //!    * its BIC on the training part, counted over the effective number of
-//!      independent residuals (`n / τ`, `τ` the residual's correlation length
-//!      in samples), falls by at least [`DiagnoseConfig::min_bic_drop`]
-//!      (default 10, "very strong" on the usual scale), and
+//!      independent residuals (`n / τ`, `τ` the correlation length of the
+//!      residual's systematic part, [`correlation_length`]), falls by at
+//!      least [`DiagnoseConfig::min_bic_drop`] (default 10), and
 //!    * its held-out RMS in its own regime (its *signature*: after inner
 //!      reversals for the memory, fast ramps for the rate, holds after steps
-//!      for creep, the worst load for the width) is cut by at least the same
-//!      fraction — a candidate that only helps elsewhere is absorbing some
-//!      other misfit, not showing its effect.
+//!      for creep, the worst load for the width, the mean residual per load
+//!      and stroke cell for the constraint shape) is cut by at least the
+//!      same fraction.
 //!
 //!    Of those that earn it, the one with the lowest held-out RMS is added;
-//!    then the remaining candidates are tried on top of it, until none earns
-//!    its parameters or [`DiagnoseConfig::max_effects`] are in. No candidate
-//!    earning it is the answer `none`.
+//!    then every remaining candidate is fitted again on the new base, until
+//!    none earns its parameters or [`DiagnoseConfig::max_effects`] are in.
+//!    No candidate earning it is the answer `none`.
 
 mod candidates;
 mod evaluate;
@@ -157,6 +162,16 @@ fn tracker_config(noise_mpa: f64, load_noise_n: f64) -> TrackerConfig {
 
 /// Run the diagnosis on `record`.
 pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport, DiagnoseError> {
+    diagnose_with_progress(record, cfg, &|_| {})
+}
+
+/// [`diagnose`], telling `progress` about each stage (the base fit, every
+/// candidate of every round) as it starts.
+pub fn diagnose_with_progress(
+    record: &Record,
+    cfg: &DiagnoseConfig,
+    progress: &dyn Fn(&str),
+) -> Result<DiagnoseReport, DiagnoseError> {
     let samples = &record.samples;
     if samples.len() < 100 {
         return Err(DiagnoseError::Data(format!(
@@ -181,6 +196,10 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
     let train_record = Record::from_samples(format!("{} (training part)", record.source), train);
     let mut fit_cfg = cfg.fit.clone();
     fit_cfg.holdout = Holdout::None;
+    progress(&format!(
+        "fitting the paper's model on {} training samples",
+        train_record.samples.len()
+    ));
     let fit = crate::fit::fit(&train_record, &fit_cfg)?;
 
     // The held-out blocks may go beyond the training loads (the examples'
@@ -260,6 +279,11 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
         }
         let mut results = Vec::new();
         for kind in remaining {
+            progress(&format!(
+                "round {}: fitting {}",
+                rounds.len() + 1,
+                kind.name()
+            ));
             results.push(evaluate_candidate(
                 &setup,
                 kind,
@@ -342,7 +366,9 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
 /// print the summary.
 pub fn run_cli(data: &Path, out: &Path) -> anyhow::Result<()> {
     let record = crate::data::read_csv(data)?;
-    let report = diagnose(&record, &DiagnoseConfig::default())?;
+    let report = diagnose_with_progress(&record, &DiagnoseConfig::default(), &|s| {
+        eprintln!("diagnose: {s}")
+    })?;
     write_outputs(&report, &record, out)?;
     print!("{}", summary(&report));
     println!(

@@ -20,14 +20,20 @@
 //!   first-order lag;
 //! * `Width`: ellipse height `be0·(L/100 N)^1.3` (friction growing faster
 //!   than the load), not linear in load;
-//! * `None`: the paper's model with its jump to the other branch.
+//! * `None`: the paper's model with its jump to the other branch;
+//! * `WidthAndCreep`, `MemoryAndRate`: two of the above at once;
+//! * `TonduLopez`: a static curve outside the cubic family (the Tondu–Lopez
+//!   force law, solved in closed form) with the memory plant's friction.
 //!
 //! The protocol follows the examples' README: at 100, 200 and 300 N, two full
 //! cycles at 0.05 MPa/s, partial cycles reversing inside the loop, full cycles
 //! at 0.02 and 0.2 MPa/s, pressure steps to three levels with 8 s holds; then
 //! full cycles at random loads between 100 and 350 N (each of 100, 150, …,
 //! 350 N at most once, in a random order). Sampled at 50 Hz with
-//! 0.001 MPa pressure noise and 0.0008 contraction noise.
+//! 0.001 MPa pressure noise and 0.0008 contraction noise. A second protocol
+//! ([`protocol_b`], [`csv_b`]) shares nothing with it but the noise: 100 Hz,
+//! sinusoidal cycles, decaying oscillations, random reversals, steps, loads
+//! 80–480 N.
 
 #![allow(dead_code)]
 
