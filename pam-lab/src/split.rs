@@ -143,7 +143,7 @@ pub fn holdout_by_load_block(loads_n: &[f64]) -> Vec<bool> {
     let mut block_load = Vec::new();
     let mut last = f64::NAN;
     for &l in loads_n {
-        if !((l - last).abs() <= 1.0) {
+        if last.is_nan() || (l - last).abs() > 1.0 {
             block_load.push(l);
             last = l;
         }

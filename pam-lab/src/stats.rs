@@ -267,7 +267,7 @@ pub fn correlation_length(res: &[f64], noise: f64, short_lag: usize) -> f64 {
     }
     let mean = v.iter().sum::<f64>() / n as f64;
     let var = v.iter().map(|r| (r - mean) * (r - mean)).sum::<f64>() / n as f64;
-    if !(var > 0.0) {
+    if var.is_nan() || var <= 0.0 {
         return 1.0;
     }
     let max_lag = MAX_CORRELATION_LAG.min(n - 1);

@@ -65,7 +65,7 @@ fn jump_near(
     to: Branch,
     noise: f64,
 ) -> Option<usize> {
-    if !(noise > 0.0) || hi < 2 {
+    if noise.is_nan() || noise <= 0.0 || hi < 2 {
         return None;
     }
     let dt = samples
