@@ -334,6 +334,14 @@ pub fn diagnose_with_progress(
         })
         .unwrap_or_default();
     let heldout_samples = setup.heldout.iter().filter(|h| **h).count();
+    let above_noise_before = crate::stats::above_noise(base_errors.rms_heldout, noise.contraction);
+    let above_noise_after =
+        crate::stats::above_noise(current_errors.rms_heldout, noise.contraction);
+    let above_noise_removed = if above_noise_before > 0.0 {
+        1.0 - above_noise_after / above_noise_before
+    } else {
+        0.0
+    };
     Ok(DiagnoseReport {
         source: record.source.clone(),
         named: added.first().copied().unwrap_or("none"),
@@ -342,8 +350,9 @@ pub fn diagnose_with_progress(
         rms_after: current_errors.rms_heldout,
         noise,
         extrapolated_samples: extrapolated,
-        above_noise_before: crate::stats::above_noise(base_errors.rms_heldout, noise.contraction),
-        above_noise_after: crate::stats::above_noise(current_errors.rms_heldout, noise.contraction),
+        above_noise_before,
+        above_noise_after,
+        above_noise_removed,
         candidates,
         rounds,
         base: base_errors,

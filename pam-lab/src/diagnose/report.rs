@@ -46,6 +46,9 @@ pub struct DiagnoseReport {
     pub above_noise_before: f64,
     /// The same after the additions.
     pub above_noise_after: f64,
+    /// Share of the error above the noise the added effects removed
+    /// ([`DiagnoseReport::share_removed`]).
+    pub above_noise_removed: f64,
     /// First round's candidates against the base model: name and held-out RMS.
     pub candidates: Vec<CandidateSummary>,
     /// Every round in full.
@@ -92,11 +95,7 @@ impl DiagnoseReport {
     /// removed: `1 − above_noise_after / above_noise_before` (0 when the
     /// base is already at the noise).
     pub fn share_removed(&self) -> f64 {
-        if self.above_noise_before > 0.0 {
-            1.0 - self.above_noise_after / self.above_noise_before
-        } else {
-            0.0
-        }
+        self.above_noise_removed
     }
 }
 
