@@ -113,7 +113,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
     let mut s = String::new();
     let pct = |x: f64| 100.0 * x;
     s.push_str(&format!(
-        "diagnose {}: {} training / {} held-out samples (every 3rd cycle of each load held out)\n",
+        "diagnose {}: {} training / {} held-out samples (one segment in 3 held out: cycles cut at load changes, drawn)\n",
         r.source, r.train_samples, r.heldout_samples
     ));
     s.push_str(&format!(
