@@ -120,6 +120,7 @@ pub const MEMORY_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
     rate: None,
     creep: None,
     width: None,
+    shape: None,
 };
 
 /// Run the scenario with the controller built from `blob` and the given

@@ -1,5 +1,5 @@
 //! `Simulator::step` (pam-core's per-sample model with non-local memory,
-//! rate dependence, creep and load-dependent width) over arbitrary
+//! rate dependence, creep, load-dependent width and constraint shape) over arbitrary
 //! `(t_s, pressure_mpa, load_n)` samples, with perturbed effect parameters.
 //!
 //! Asserts after every sample: the prediction is finite and inside the
@@ -10,7 +10,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use pam_core::effects::{
-    Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence, Simulator, MAX_OFFSET_SCALE,
+    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence, Simulator,
+    MAX_OFFSET_SCALE,
 };
 use pam_fuzz::Floats;
 
@@ -38,6 +39,12 @@ fuzz_target!(|data: &[u8]| {
         width: (on & 8 != 0).then(|| LoadDependentWidth {
             scale_at_min_load: f.near(1.0, 2.0),
             scale_per_step: f.near(0.2, 2.0),
+        }),
+        shape: (on & 16 != 0).then(|| ConstraintShape {
+            bulge: f.near(0.3, 2.0),
+            tilt: f.near(-0.2, 2.0),
+            bulge_per_step: f.near(0.05, 2.0),
+            tilt_per_step: f.near(0.05, 2.0),
         }),
     };
     let config = f.tracker_config();

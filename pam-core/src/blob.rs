@@ -24,12 +24,13 @@
 //! | 4 | 2 | format version ([`BLOB_VERSION_V2`]) |
 //! | 6 | 2 | payload length in bytes ([`PAYLOAD_V2_LEN`]) |
 //! | 8 | 56 | the 14 `f32` fields of [`Params`], in declaration order |
-//! | 64 | 4 | effect flags, `u32`: [`FLAG_MEMORY`], [`FLAG_RATE`], [`FLAG_CREEP`], [`FLAG_WIDTH`]; any other bit set is refused |
+//! | 64 | 4 | effect flags, `u32`: [`FLAG_MEMORY`], [`FLAG_RATE`], [`FLAG_CREEP`], [`FLAG_WIDTH`], [`FLAG_SHAPE`]; any other bit set is refused |
 //! | 68 | 8 | non-local memory: `shape`, `merge_span` |
 //! | 76 | 16 | rate dependence: `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s` |
 //! | 92 | 8 | creep: `gain`, `time_constant_s` |
 //! | 100 | 8 | load-dependent width: `scale_at_min_load`, `scale_per_step` |
-//! | 108 | 4 | CRC-32 of bytes 0..108 |
+//! | 108 | 16 | constraint shape: `bulge`, `tilt`, `bulge_per_step`, `tilt_per_step` |
+//! | 124 | 4 | CRC-32 of bytes 0..124 |
 //!
 //! An effect whose flag is clear has its fields written as zeros, and they
 //! must be zero to decode (one encoding per model). [`decode_model`] reads
@@ -38,7 +39,9 @@
 //! effect refuses the blob (the firmware runs the memory only).
 
 use crate::coeffs::Coeffs;
-use crate::effects::{Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence};
+use crate::effects::{
+    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
+};
 use crate::error::Error;
 use crate::params::{CriticalPoints, Params, Point};
 
@@ -58,10 +61,12 @@ pub const FLAG_RATE: u32 = 1 << 1;
 pub const FLAG_CREEP: u32 = 1 << 2;
 /// Effect flag: load-dependent width.
 pub const FLAG_WIDTH: u32 = 1 << 3;
+/// Effect flag: the constraint-shape correction.
+pub const FLAG_SHAPE: u32 = 1 << 4;
 /// Every flag this crate knows.
-pub const KNOWN_FLAGS: u32 = FLAG_MEMORY | FLAG_RATE | FLAG_CREEP | FLAG_WIDTH;
+pub const KNOWN_FLAGS: u32 = FLAG_MEMORY | FLAG_RATE | FLAG_CREEP | FLAG_WIDTH | FLAG_SHAPE;
 /// `f32` fields of the effects in a version-2 payload.
-pub const EFFECT_FIELDS: usize = 10;
+pub const EFFECT_FIELDS: usize = 14;
 /// Version-2 payload length, bytes: parameters, flags, effect fields.
 pub const PAYLOAD_V2_LEN: usize = 4 * PAYLOAD_FIELDS + 4 + 4 * EFFECT_FIELDS;
 /// Version-2 blob length, bytes.
@@ -198,6 +203,13 @@ fn effect_fields(e: &Effects) -> (u32, [f32; EFFECT_FIELDS]) {
         f[8] = w.scale_at_min_load;
         f[9] = w.scale_per_step;
     }
+    if let Some(c) = e.shape {
+        flags |= FLAG_SHAPE;
+        f[10] = c.bulge;
+        f[11] = c.tilt;
+        f[12] = c.bulge_per_step;
+        f[13] = c.tilt_per_step;
+    }
     (flags, f)
 }
 
@@ -232,6 +244,12 @@ fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> 
         width: on(FLAG_WIDTH, &f[8..10])?.then_some(LoadDependentWidth {
             scale_at_min_load: f[8],
             scale_per_step: f[9],
+        }),
+        shape: on(FLAG_SHAPE, &f[10..14])?.then_some(ConstraintShape {
+            bulge: f[10],
+            tilt: f[11],
+            bulge_per_step: f[12],
+            tilt_per_step: f[13],
         }),
     };
     Ok(e)
@@ -410,18 +428,25 @@ mod tests {
                 scale_at_min_load: 0.8,
                 scale_per_step: 0.1,
             }),
+            shape: Some(ConstraintShape {
+                bulge: 0.1,
+                tilt: -0.05,
+                bulge_per_step: 0.02,
+                tilt_per_step: 0.01,
+            }),
         }
     }
 
     #[test]
     fn v2_round_trips_every_combination_of_effects() {
         let all = with_every_effect();
-        for mask in 0..16u32 {
+        for mask in 0..32u32 {
             let e = Effects {
                 memory: all.memory.filter(|_| mask & FLAG_MEMORY != 0),
                 rate: all.rate.filter(|_| mask & FLAG_RATE != 0),
                 creep: all.creep.filter(|_| mask & FLAG_CREEP != 0),
                 width: all.width.filter(|_| mask & FLAG_WIDTH != 0),
+                shape: all.shape.filter(|_| mask & FLAG_SHAPE != 0),
             };
             let blob = encode_v2(&Params::DEFAULT, &e);
             assert_eq!(

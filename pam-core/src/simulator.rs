@@ -199,6 +199,16 @@ impl<const N: usize> Simulator<N> {
             });
         }
 
+        // The static curve's correction along the stroke (after the
+        // memory, which works in the paper's model, before the creep, which
+        // relaxes towards the muscle's static value).
+        let (x_static, x_clamped) = match &self.effects.shape {
+            Some(s) => {
+                let s = s.at_load(self.coeffs.params(), self.tracker.load_n());
+                (s.apply(model, x_static), s.apply(model, x_clamped))
+            }
+            None => (x_static, x_clamped),
+        };
         let x = match &self.effects.creep {
             Some(c) => clamp(
                 c.step(

@@ -3,8 +3,8 @@
 
 use pam_core::effects::MAX_OFFSET_SCALE;
 use pam_core::effects::{
-    branch_contraction, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
-    RateState, Reversal, ReversalStack,
+    branch_contraction, ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory,
+    RateDependence, RateState, Reversal, ReversalStack,
 };
 use pam_core::{Branch, Coeffs, Simulator, Tracker, TrackerConfig};
 use proptest::prelude::*;
@@ -29,6 +29,12 @@ fn all_effects() -> Effects {
         width: Some(LoadDependentWidth {
             scale_at_min_load: 1.2,
             scale_per_step: -0.2,
+        }),
+        shape: Some(ConstraintShape {
+            bulge: 0.3,
+            tilt: -0.2,
+            bulge_per_step: 0.05,
+            tilt_per_step: 0.0,
         }),
     }
 }

@@ -52,12 +52,13 @@ fn check(record: &Record, purpose: Purpose) -> Result<(), DataError> {
     Ok(())
 }
 
-/// `diagnose` holds out alternate blocks of one load
-/// ([`diagnose::holdout_by_load_block`]); a load column that changes between
+/// `diagnose` cuts its hold-out at load changes
+/// ([`crate::split::holdout_by_load_block`]); a load column that changes between
 /// most samples (an isometric record's measured force, a noisy load cell)
 /// has no such blocks: refused before the work, with the reason.
 pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
-    let mask = diagnose::holdout_by_load_block(&record.samples);
+    let loads: Vec<f64> = record.samples.iter().map(|s| s.load_n).collect();
+    let mask = crate::split::holdout_by_load_block(&loads);
     let blocks = 1 + mask.windows(2).filter(|w| w[0] != w[1]).count();
     let mean_len = record.len() as f64 / blocks as f64;
     if blocks > 1 && mean_len < 50.0 {

@@ -220,10 +220,19 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
             f(w.scale_per_step)
         )
     }));
+    let shape = opt(effects.shape.map(|c| {
+        format!(
+            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n    }}",
+            f(c.bulge),
+            f(c.tilt),
+            f(c.bulge_per_step),
+            f(c.tilt_per_step)
+        )
+    }));
     src.push_str(&format!(
         "\n/// The effects of the model beyond the paper's, identified with it.\n\
          pub const EFFECTS: pam_core::Effects = pam_core::Effects {{\n    \
-         memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n}};\n"
+         memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n    shape: {shape},\n}};\n"
     ));
     src
 }

@@ -112,6 +112,127 @@ pub fn moving_average(x: &[f64], w: usize) -> Vec<f64> {
         .collect()
 }
 
+/// Centred running median of `2·half + 1` samples (shrinking at the ends).
+///
+/// Unlike a moving average it keeps steps sharp, so smoothing a pressure
+/// with it does not fake a lag or a creep after a step.
+pub fn running_median(x: &[f64], half: usize) -> Vec<f64> {
+    let n = x.len();
+    let mut window = Vec::with_capacity(2 * half + 1);
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(half), (i + half).min(n - 1));
+            window.clear();
+            window.extend_from_slice(&x[a..=b]);
+            window.sort_by(f64::total_cmp);
+            window[window.len() / 2]
+        })
+        .collect()
+}
+
+/// Held-out mask by load blocks (runs of one load, within 1 N), for any
+/// protocol: blocks alternate training (even) and held out (odd), except
+/// that the blocks at the record's lowest and highest load always train, so
+/// that no held-out sample lies beyond the training loads (the load family
+/// would extrapolate there, and its error would be charged to the effects).
+/// When that leaves nothing held out (one or two loads), the last 30 % of
+/// every block is held out instead.
+pub fn holdout_by_load_block(loads_n: &[f64]) -> Vec<bool> {
+    let n = loads_n.len();
+    let mut block_of = Vec::with_capacity(n);
+    let mut block_load = Vec::new();
+    let mut last = f64::NAN;
+    for &l in loads_n {
+        if last.is_nan() || (l - last).abs() > 1.0 {
+            block_load.push(l);
+            last = l;
+        }
+        block_of.push(block_load.len() - 1);
+    }
+    let (lo, hi) = block_load
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &l| {
+            (a.min(l), b.max(l))
+        });
+    let extreme = |l: f64| (l - lo).abs() <= 1.0 || (l - hi).abs() <= 1.0;
+    let held: Vec<bool> = block_load
+        .iter()
+        .enumerate()
+        .map(|(k, &l)| k % 2 == 1 && !extreme(l))
+        .collect();
+    let out: Vec<bool> = block_of.iter().map(|&k| held[k]).collect();
+    if out.iter().any(|h| *h) {
+        return out;
+    }
+    // Every block's tail.
+    let mut start = vec![0usize; block_load.len()];
+    let mut len = vec![0usize; block_load.len()];
+    for (i, &k) in block_of.iter().enumerate() {
+        if len[k] == 0 {
+            start[k] = i;
+        }
+        len[k] += 1;
+    }
+    block_of
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| (i - start[k]) as f64 >= 0.7 * len[k] as f64)
+        .collect()
+}
+
+/// Held-out mask for a diagnosis, for any protocol: the record is cut into
+/// segments at every cycle start (`cycle`, from [`split_branches`]) and
+/// every load change (more than 1 N), and one segment in `k` is held out,
+/// drawn by a fixed hash of its number (the same record always gets the
+/// same mask). A fixed pattern (every `k`-th) would lock onto a protocol
+/// that repeats the same sequence of cycles at every load and hold out,
+/// say, every full cycle; a drawn one mixes every kind of cycle and every
+/// load into both parts. The record's first segment always trains. A
+/// record where that holds out under a tenth of the samples (few cycles)
+/// falls back to [`holdout_by_load_block`].
+pub fn holdout_by_segment(loads_n: &[f64], cycle: &[u32], k: usize) -> Vec<bool> {
+    let n = loads_n.len().min(cycle.len());
+    let k = k.max(2) as u64;
+    let mut out = Vec::with_capacity(n);
+    let mut segment = 0u64;
+    for i in 0..n {
+        if i > 0 && ((loads_n[i] - loads_n[i - 1]).abs() > 1.0 || cycle[i] != cycle[i - 1]) {
+            segment += 1;
+        }
+        out.push(segment > 0 && splitmix(segment) % k == 0);
+    }
+    if (out.iter().filter(|h| **h).count() as f64) < 0.1 * n as f64 {
+        return holdout_by_load_block(&loads_n[..n]);
+    }
+    out
+}
+
+/// SplitMix64's output function: a fixed, well-mixed hash of `x`.
+fn splitmix(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Held-out samples whose load lies outside the training samples' load
+/// range (by more than 1 N): where a held-out error would measure the load
+/// family's extrapolation.
+pub fn extrapolated(loads_n: &[f64], heldout: &[bool]) -> usize {
+    let (lo, hi) = loads_n
+        .iter()
+        .zip(heldout)
+        .filter(|(_, h)| !**h)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (&l, _)| {
+            (a.min(l), b.max(l))
+        });
+    loads_n
+        .iter()
+        .zip(heldout)
+        .filter(|(&l, &h)| h && (l < lo - 1.0 || l > hi + 1.0))
+        .count()
+}
+
 /// Label every sample with its branch; see the module docs.
 pub fn split_branches(samples: &[Sample], cfg: &SplitConfig) -> Split {
     let n = samples.len();
@@ -313,5 +434,54 @@ mod tests {
     fn flat_record_has_no_branch() {
         let s = split_branches(&samples(&[0.1; 50]), &SplitConfig::default());
         assert!(s.branch.iter().all(Option::is_none));
+    }
+
+    #[test]
+    fn about_one_segment_in_k_is_held_out_at_every_load() {
+        // Four loads of 30 cycles of 10 samples each.
+        let loads: Vec<f64> = (0..1200).map(|i| 100.0 * (1 + i / 300) as f64).collect();
+        let cycle: Vec<u32> = (0..1200).map(|i| i / 10).collect();
+        let h = holdout_by_segment(&loads, &cycle, 3);
+        assert!(h[..10].iter().all(|x| !x));
+        for block in h.chunks(300) {
+            let share = block.iter().filter(|x| **x).count() as f64 / 300.0;
+            assert!((0.15..0.55).contains(&share), "{share}");
+        }
+        // Whole segments only.
+        for c in h.chunks(10) {
+            assert!(c.iter().all(|x| *x == c[0]));
+        }
+        assert_eq!(extrapolated(&loads, &h), 0);
+        // One cycle per load: too little held out, by load blocks instead.
+        let loads = [100.0, 100.0, 200.0, 200.0, 300.0, 300.0];
+        let h = holdout_by_segment(&loads, &[0, 0, 1, 1, 2, 2], 3);
+        assert_eq!(h, holdout_by_load_block(&loads));
+    }
+
+    #[test]
+    fn load_blocks_alternate_and_the_extreme_loads_train() {
+        let v = [100.0, 100.0, 200.0, 200.0, 300.0, 150.0, 250.0, 250.0];
+        let h = holdout_by_load_block(&v);
+        assert_eq!(h, vec![false, false, true, true, false, true, false, false]);
+        assert_eq!(extrapolated(&v, &h), 0);
+        // The highest load in an odd block trains all the same.
+        let v = [200.0, 480.0, 80.0, 300.0, 250.0, 250.0];
+        let h = holdout_by_load_block(&v);
+        assert_eq!(h, vec![false, false, false, true, false, false]);
+        assert_eq!(extrapolated(&v, &h), 0);
+        assert_eq!(
+            extrapolated(&v, &[false, true, false, false, false, false]),
+            1
+        );
+        // One or two loads: every block's last 30 %.
+        let one = [100.0; 10];
+        assert_eq!(
+            holdout_by_load_block(&one),
+            [vec![false; 7], vec![true; 3]].concat()
+        );
+        let two = [[100.0; 10], [300.0; 10]].concat();
+        let h = holdout_by_load_block(&two);
+        assert_eq!(h.iter().filter(|x| **x).count(), 6);
+        assert!(h[7] && h[17] && !h[6] && !h[16]);
     }
 }

@@ -224,3 +224,227 @@ mod tests {
         assert!(t.to_text().contains("contraction"));
     }
 }
+
+/// RMS of the finite `res[i]` where `mask(i)`, and how many there were
+/// (`NaN`, 0 when none).
+pub fn rms_where(res: &[f64], mask: impl Fn(usize) -> bool) -> (f64, usize) {
+    let (mut s, mut k) = (0.0, 0usize);
+    for (i, r) in res.iter().enumerate() {
+        if mask(i) && r.is_finite() {
+            s += r * r;
+            k += 1;
+        }
+    }
+    if k == 0 {
+        (f64::NAN, 0)
+    } else {
+        ((s / k as f64).sqrt(), k)
+    }
+}
+
+/// Longest correlation length [`correlation_length`] reports, samples.
+pub const MAX_CORRELATION_LAG: usize = 500;
+
+/// Correlation length of a residual series, samples: the first lag at which
+/// its autocorrelation falls below `1/e` (at least 1, at most
+/// [`MAX_CORRELATION_LAG`]).
+///
+/// `noise` is the white measurement noise in the series (standard
+/// deviation; 0 if unknown) and `short_lag` the longest lag over which
+/// noise stays correlated (1 for white noise; the width of a filter the
+/// input went through). The noise's variance is taken off, so the length is
+/// that of the systematic part, the model error: on a
+/// residual that is mostly noise the plain autocorrelation drops below
+/// `1/e` at lag 1, which would count every sample as an independent piece
+/// of evidence and make any small change of the RMS look decisive in a BIC.
+/// A residual with no variance above the noise has no systematic part to
+/// measure: the length is then the maximum (little evidence).
+pub fn correlation_length(res: &[f64], noise: f64, short_lag: usize) -> f64 {
+    let v: Vec<f64> = res.iter().copied().filter(|r| r.is_finite()).collect();
+    let n = v.len();
+    if n < 4 {
+        return 1.0;
+    }
+    let mean = v.iter().sum::<f64>() / n as f64;
+    let var = v.iter().map(|r| (r - mean) * (r - mean)).sum::<f64>() / n as f64;
+    if var.is_nan() || var <= 0.0 {
+        return 1.0;
+    }
+    let max_lag = MAX_CORRELATION_LAG.min(n - 1);
+    let cov = |lag: usize| {
+        (0..n - lag)
+            .map(|i| (v[i] - mean) * (v[i + lag] - mean))
+            .sum::<f64>()
+            / (n - lag) as f64
+    };
+    // The systematic variance: the lag-0 variance less the noise's, and at
+    // most the covariance at `short_lag` (white parts — the noise,
+    // single-sample spikes at reversals — add to lag 0 only, and noise
+    // filtered over fewer than `short_lag` samples, such as the input's
+    // noise through a running median, is gone by then).
+    let short_lag = short_lag.clamp(1, max_lag.saturating_sub(1).max(1));
+    let systematic = (var - noise * noise).min(cov(short_lag));
+    if systematic <= 0.05 * var {
+        return max_lag as f64;
+    }
+    for lag in short_lag..max_lag {
+        if cov(lag) / systematic < (-1.0f64).exp() {
+            return lag as f64;
+        }
+    }
+    max_lag as f64
+}
+
+/// Measurement noise of a record, estimated from the record itself.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct NoiseFloor {
+    /// Contraction noise (standard deviation, fraction of rest length).
+    pub contraction: f64,
+    /// Pressure noise (standard deviation), MPa.
+    pub pressure_mpa: f64,
+    /// Samples the estimate is taken from.
+    pub samples: usize,
+}
+
+/// Estimate the white measurement noise of contraction and pressure from
+/// short-lag (second) differences where the pressure moves slowest: the
+/// quarter of the samples with the lowest pressure rate (holds, slow ramps,
+/// the turns of smooth cycles), whatever the protocol. There the muscle's
+/// own motion adds almost nothing to a second difference, so
+/// `var(x[i+1] − 2x[i] + x[i−1]) = 6σ²`; the median absolute value makes it
+/// robust to the few steps and spikes left (`σ ≈ 1.4826·MAD`). Falls back to
+/// the whole record when fewer than 30 such triples exist.
+pub fn noise_floor(samples: &[Sample]) -> NoiseFloor {
+    let n = samples.len();
+    let whole = || NoiseFloor {
+        contraction: crate::split::noise_std(samples.iter().map(|s| s.contraction)),
+        pressure_mpa: crate::split::noise_std(samples.iter().map(|s| s.pressure_mpa)),
+        samples: n,
+    };
+    if n < 40 {
+        return whole();
+    }
+    let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
+    let ps = crate::split::running_median(&p, 4);
+    let dt = median_step_s(samples);
+    // Rate over ±0.2 s (at least ±2 samples).
+    let w = ((0.2 / dt).round() as usize).max(2);
+    let rate: Vec<f64> = (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(w), (i + w).min(n - 1));
+            (ps[b] - ps[a]).abs() / ((b - a) as f64 * dt)
+        })
+        .collect();
+    let mut sorted = rate.clone();
+    let k = n / 4;
+    let (_, q, _) = sorted.select_nth_unstable_by(k, f64::total_cmp);
+    let q = *q;
+    let slow: Vec<bool> = rate.iter().map(|r| *r <= q).collect();
+    let second = |v: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        (1..n - 1)
+            .filter(|&i| slow[i - 1] && slow[i] && slow[i + 1])
+            .map(|i| (v(i + 1) - 2.0 * v(i) + v(i - 1)).abs())
+            .collect()
+    };
+    let dx = second(&|i| samples[i].contraction);
+    let dp = second(&|i| samples[i].pressure_mpa);
+    if dx.len() < 30 {
+        return whole();
+    }
+    let sigma = |mut d: Vec<f64>| {
+        let mid = d.len() / 2;
+        let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+        1.4826 * *m / 6f64.sqrt()
+    };
+    NoiseFloor {
+        samples: dx.len(),
+        contraction: sigma(dx),
+        pressure_mpa: sigma(dp),
+    }
+}
+
+/// Median sample interval of a record, s (0.02 if it has under 2 samples
+/// or no positive interval).
+pub fn median_step_s(samples: &[Sample]) -> f64 {
+    let mut d: Vec<f64> = samples
+        .windows(2)
+        .map(|w| w[1].t_s - w[0].t_s)
+        .filter(|d| *d > 0.0 && d.is_finite())
+        .collect();
+    if d.is_empty() {
+        return 0.02;
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    *m
+}
+
+/// The model error above the measurement noise: `sqrt(rms² − noise²)`
+/// (0 when the RMS is at or below the noise).
+pub fn above_noise(rms: f64, noise: f64) -> f64 {
+    (rms * rms - noise * noise).max(0.0).sqrt()
+}
+
+#[cfg(test)]
+mod noise_tests {
+    use super::*;
+
+    /// Deterministic Gaussian-ish noise (sum of 12 uniforms − 6).
+    fn gauss(i: usize) -> f64 {
+        let mut rng = crate::synth::Rng::new(i as u64 * 7 + 3);
+        (0..12).map(|_| rng.uniform()).sum::<f64>() - 6.0
+    }
+
+    #[test]
+    fn correlation_length_of_a_slow_signal_is_long_and_white_noise_has_no_length() {
+        let slow: Vec<f64> = (0..2000).map(|i| (i as f64 / 200.0).sin()).collect();
+        assert!(correlation_length(&slow, 0.0, 1) > 50.0);
+        // White noise has no systematic part: the maximum (little evidence),
+        // not one sample (every sample independent evidence).
+        let white: Vec<f64> = (0..1000).map(|i| 0.0008 * gauss(i)).collect();
+        for (noise, short) in [(0.0, 1), (0.0008, 1), (0.0008, 9)] {
+            assert_eq!(
+                correlation_length(&white, noise, short),
+                MAX_CORRELATION_LAG as f64
+            );
+        }
+    }
+
+    #[test]
+    fn correlation_length_sees_a_slow_error_under_white_noise() {
+        // A slow error of 0.0005 under 0.0008 of white noise: normalised by
+        // the lag-0 variance the autocorrelation falls below 1/e at once;
+        // the systematic part's length is about 200·acos(1/e) ≈ 240 samples.
+        let r: Vec<f64> = (0..6000)
+            .map(|i| 0.0005 * (i as f64 / 200.0).sin() + 0.0008 * gauss(i))
+            .collect();
+        for (noise, short) in [(0.0, 1), (0.0008, 1), (0.0008, 9)] {
+            let len = correlation_length(&r, noise, short);
+            assert!((150.0..=350.0).contains(&len), "{noise} {short}: {len}");
+        }
+    }
+
+    #[test]
+    fn noise_floor_is_found_on_ramps_and_holds_of_any_rate() {
+        // Sinusoidal pressure at 100 Hz (no holds at all), a steep static
+        // curve, 0.0008 contraction and 0.001 MPa pressure noise.
+        let s: Vec<Sample> = (0..20_000)
+            .map(|i| {
+                let t = i as f64 * 0.01;
+                let p = 0.25 - 0.25 * (2.0 * std::f64::consts::PI * t / 8.0).cos();
+                Sample {
+                    t_s: t,
+                    load_n: 200.0,
+                    pressure_mpa: p + 0.001 * gauss(2 * i),
+                    contraction: 0.3 * p + 0.0008 * gauss(2 * i + 1),
+                }
+            })
+            .collect();
+        let f = noise_floor(&s);
+        assert!((f.contraction - 0.0008).abs() < 0.1 * 0.0008, "{f:?}");
+        assert!((f.pressure_mpa - 0.001).abs() < 0.1 * 0.001, "{f:?}");
+        assert!(f.samples > 3000, "{f:?}");
+        assert!((above_noise(0.001, 0.0008) - 0.0006).abs() < 1e-12);
+        assert_eq!(above_noise(0.0007, 0.0008), 0.0);
+    }
+}

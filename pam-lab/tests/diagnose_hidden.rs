@@ -3,15 +3,8 @@
 //! the rig's effect (or `none`), and should at least halve the held-out RMS
 //! where an effect is present.
 //!
-//! Status (measured, seed 7, short protocol, debug build): every plant is
-//! named right; held-out RMS cuts 60.3 % (memory, a Prandtl–Ishlinskii
-//! plant, with the memory's fitted merge span), 61.5 % (rate, with the power
-//! law `|ṗ|^n`: `n` = 0.75 and a 0.117 s filter fitted against the plant's
-//! 0.7 and 0.1 s), 52.1 % (creep, one lag against the plant's two) and
-//! 70.7 % (width). Over seeds 1–7 (release build, the same plants) the cuts
-//! ranged 60.0–61.2 % (memory), 50.5–57.3 % (creep) and 53.6–71.8 % (width),
-//! and the no-effect plant was named `none` every time. Creep has the
-//! thinnest margin: its single lag misses the plant's 6 s element.
+//! Measured figures (every plant, both protocols, several seeds) are in
+//! pam-lab/DIAGNOSE.md; this file checks seed 7 of the examples' protocol.
 //!
 //! Each plant is diagnosed once (a per-plant `OnceLock`), shared by its
 //! naming and halving tests, to keep the suite's debug run short.
@@ -21,7 +14,7 @@ mod support;
 use pam_lab::diagnose::{diagnose, DiagnoseConfig, DiagnoseReport};
 use std::sync::OnceLock;
 
-use support::hidden_plants::{csv, Plant};
+use support::hidden_plants::{csv, csv_b, Plant};
 
 fn run(plant: Plant, seed: u64) -> DiagnoseReport {
     let dir = tempfile::tempdir().unwrap();
@@ -35,14 +28,8 @@ fn run(plant: Plant, seed: u64) -> DiagnoseReport {
 
 /// The diagnosis of `plant` (seed 7), computed once per test binary.
 fn report(plant: Plant) -> &'static DiagnoseReport {
-    static CACHE: [OnceLock<DiagnoseReport>; 5] = [const { OnceLock::new() }; 5];
-    let slot = match plant {
-        Plant::None => 0,
-        Plant::NonLocalMemory => 1,
-        Plant::Rate => 2,
-        Plant::Creep => 3,
-        Plant::Width => 4,
-    };
+    static CACHE: [OnceLock<DiagnoseReport>; 7] = [const { OnceLock::new() }; 7];
+    let slot = Plant::ALL.iter().position(|p| *p == plant).unwrap_or(0);
     CACHE[slot].get_or_init(|| run(plant, 7))
 }
 
@@ -58,6 +45,19 @@ fn names(plant: Plant) -> &'static DiagnoseReport {
     r
 }
 
+/// The model error above the noise floor is cut by at least `share`
+/// (the held-out RMS itself cannot fall below the noise).
+fn cuts_above_noise(plant: Plant, share: f64) {
+    let r = names(plant);
+    assert!(
+        r.share_removed() >= share,
+        "{plant:?}: above the noise {} -> {} ({:.0} %)",
+        r.above_noise_before,
+        r.above_noise_after,
+        100.0 * r.share_removed()
+    );
+}
+
 fn halves(plant: Plant) {
     let r = names(plant);
     assert!(
@@ -65,6 +65,18 @@ fn halves(plant: Plant) {
         "{plant:?}: {} -> {}",
         r.rms_before,
         r.rms_after
+    );
+    cuts_above_noise(plant, 0.5);
+}
+
+#[test]
+fn no_effect_is_within_one_and_a_half_noise_floors() {
+    let r = names(Plant::None);
+    assert!(
+        r.rms_before <= 1.5 * r.noise.contraction,
+        "{} against a noise of {}",
+        r.rms_before,
+        r.noise.contraction
     );
 }
 
@@ -109,16 +121,28 @@ fn rate_dependence_halves_the_error() {
 }
 
 #[test]
-fn rate_law_is_sub_linear_like_the_plant() {
-    // The plant's loop height grows as |ṗ|^0.7; of the exponents tried
-    // (0.5, 0.75, 1) the fit must not pick the linear law.
-    let r = names(Plant::Rate);
-    let rate = r.effects.rate.expect("rate effect on");
-    eprintln!("fitted rate law: {rate:?}");
-    assert!(rate.exponent < 1.0, "{rate:?}");
-}
-
-#[test]
 fn load_dependent_width_halves_the_error() {
     halves(Plant::Width);
+}
+
+/// Not a check: writes every plant's record under both protocols, for
+/// seeds 1–`PAM_HIDDEN_SEEDS` (default 3), into `PAM_HIDDEN_OUT` (default
+/// `target/hidden-plants`), named `PROTOCOL_PLANT_SEED.csv`, so that the
+/// CLI can be run on them (DIAGNOSE.md gives the command).
+#[test]
+#[ignore]
+fn write_hidden_plant_records() {
+    let out = std::env::var("PAM_HIDDEN_OUT").unwrap_or_else(|_| "target/hidden-plants".into());
+    let seeds: u64 = std::env::var("PAM_HIDDEN_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3);
+    std::fs::create_dir_all(&out).unwrap();
+    for seed in 1..=seeds {
+        for plant in Plant::ALL {
+            let name = plant.expected_name();
+            std::fs::write(format!("{out}/a_{name}_{seed}.csv"), csv(plant, seed, true)).unwrap();
+            std::fs::write(format!("{out}/b_{name}_{seed}.csv"), csv_b(plant, seed)).unwrap();
+        }
+    }
 }

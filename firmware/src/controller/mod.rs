@@ -88,8 +88,8 @@ pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 10;
 ///   `HysteresisMemory` with the blob's memory shape and merge span; the
 ///   comparison modes [`Feedforward::Constraint`] and [`Feedforward::Off`]
 ///   stay as configured;
-/// * a model with rate dependence, creep or a load-dependent width is
-///   refused ([`ConfigError::UnsupportedEffect`]): the controller would
+/// * a model with rate dependence, creep, a load-dependent width or a
+///   constraint-shape correction is refused ([`ConfigError::UnsupportedEffect`]): the controller would
 ///   run a different model than the one identified.
 pub fn model_from_blob(
     blob: &[u8],
@@ -108,6 +108,9 @@ pub fn model_from_blob(
     }
     if effects.width.is_some() {
         return Err(ConfigError::UnsupportedEffect("load-dependent width"));
+    }
+    if effects.shape.is_some() {
+        return Err(ConfigError::UnsupportedEffect("constraint shape"));
     }
     if let Some(m) = effects.memory {
         m.validate().map_err(ConfigError::Coefficients)?;

@@ -8,6 +8,7 @@
 //! | [`RateDependence`] | ellipse height grows with a power of the pressure rate | `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s` |
 //! | [`Creep`] | slow first-order relaxation after pressure steps | `gain`, `time_constant_s` |
 //! | [`LoadDependentWidth`] | ellipse height linear in load | `scale_at_min_load`, `scale_per_step` |
+//! | [`ConstraintShape`] | a static curve outside the cubic family: a monotone correction along each load's stroke, both branches alike | `bulge`, `tilt` |
 //!
 //! All are `no_std`, allocation-free, and panic-free per sample; the memory
 //! holds at most `N` reversal points (a const generic).
@@ -37,11 +38,13 @@
 pub mod creep;
 pub mod memory;
 pub mod rate;
+pub mod shape;
 pub mod width;
 
 pub use creep::{Creep, CreepState};
 pub use memory::{NonLocalMemory, Reversal, ReversalStack};
 pub use rate::{RateDependence, RateState};
+pub use shape::ConstraintShape;
 pub use width::LoadDependentWidth;
 
 use crate::branch::Branch;
@@ -109,6 +112,8 @@ pub struct Effects {
     pub creep: Option<Creep>,
     /// Ellipse height linear in load.
     pub width: Option<LoadDependentWidth>,
+    /// A correction of the static curve along the stroke.
+    pub shape: Option<ConstraintShape>,
 }
 
 impl Effects {
@@ -118,6 +123,7 @@ impl Effects {
         rate: None,
         creep: None,
         width: None,
+        shape: None,
     };
 
     /// Validate every effect that is on.
@@ -133,6 +139,9 @@ impl Effects {
         }
         if let Some(w) = &self.width {
             w.validate()?;
+        }
+        if let Some(s) = &self.shape {
+            s.validate()?;
         }
         Ok(())
     }

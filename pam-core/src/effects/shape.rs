@@ -1,0 +1,306 @@
+//! Constraint shape: a static curve the paper's cubic cannot follow, as a
+//! correction along the stroke that both branches share.
+//!
+//! The paper's constraint model is a cubic between the stroke ends
+//! (eqs. 7–14). A muscle whose static curve is outside that family (a
+//! nearly vertical start, a hyperbolic end) leaves an error that depends on
+//! where along the stroke the muscle is, the same on the contraction and
+//! expansion branches. This effect maps the model's contraction `x` to
+//!
+//! `x' = R + S·(u + u·(1 − u)·(bulge + tilt·(2u − 1)))`, `u = (x − R)/S`,
+//!
+//! with `R`, `S = Rx − R` the active load's stroke (eqs. 17–19), so the
+//! correction follows each load of the family in proportion to its stroke,
+//! vanishes at both stroke ends, and is strictly increasing in `x` whenever
+//! `|bulge| + |tilt| < 1` (the derivative of `u·(1 − u)·(a + b·(2u − 1))`
+//! is within `±(|a| + |b|)` on `[0, 1]`). Validation keeps
+//! `|bulge| + |tilt| ≤ MAX_SHAPE_SLOPE`, so the map always has an inverse
+//! ([`ConstraintShape::model_contraction`]) for a feedforward.
+
+use crate::error::Error;
+use crate::load_model::LoadModel;
+use crate::math::clamp;
+use crate::params::Params;
+
+/// Largest `|bulge| + |tilt|`: the corrected curve's slope along the stroke
+/// stays at least `1 − MAX_SHAPE_SLOPE` of the model's.
+pub const MAX_SHAPE_SLOPE: f32 = 0.9;
+
+/// Bisection steps of [`ConstraintShape::model_contraction`]: the stroke
+/// (about 0.25) over 2²⁴ is below 2·10⁻⁸ of contraction.
+pub const SHAPE_INVERSE_STEPS: usize = 24;
+
+/// Parameters of the constraint-shape correction (fractions of the stroke).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ConstraintShape {
+    /// Symmetric bulge: positive moves mid-stroke contraction up.
+    pub bulge: f32,
+    /// Antisymmetric part: positive moves the upper half of the stroke up
+    /// and the lower half down.
+    pub tilt: f32,
+    /// Change of `bulge` per load step `ΔL` (`Params::load_step_n`).
+    pub bulge_per_step: f32,
+    /// Change of `tilt` per load step.
+    pub tilt_per_step: f32,
+}
+
+impl ConstraintShape {
+    /// No correction.
+    pub const NEUTRAL: ConstraintShape = ConstraintShape {
+        bulge: 0.0,
+        tilt: 0.0,
+        bulge_per_step: 0.0,
+        tilt_per_step: 0.0,
+    };
+
+    /// The shape at `load_n` (no load dependence left). Where the load
+    /// terms carry `|bulge| + |tilt|` beyond [`MAX_SHAPE_SLOPE`] both are
+    /// scaled down to it, so the map stays increasing at every load; a
+    /// non-finite load gives the shape at the minimum load.
+    pub fn at_load(&self, params: &Params, load_n: f32) -> ConstraintShape {
+        let steps = (load_n - params.min_load_n) / params.load_step_n;
+        let steps = if steps.is_finite() { steps } else { 0.0 };
+        let b = self.bulge + self.bulge_per_step * steps;
+        let t = self.tilt + self.tilt_per_step * steps;
+        let sum = b.abs() + t.abs();
+        let k = if sum > MAX_SHAPE_SLOPE && sum.is_finite() {
+            MAX_SHAPE_SLOPE / sum
+        } else if sum.is_finite() {
+            1.0
+        } else {
+            0.0
+        };
+        ConstraintShape {
+            bulge: b * k,
+            tilt: t * k,
+            bulge_per_step: 0.0,
+            tilt_per_step: 0.0,
+        }
+    }
+
+    /// Finite, `|bulge| + |tilt| ≤ MAX_SHAPE_SLOPE` (strictly increasing).
+    pub fn validate(&self) -> Result<(), Error> {
+        if !self.bulge.is_finite() {
+            return Err(Error::NonFinite("shape.bulge"));
+        }
+        if !self.tilt.is_finite() {
+            return Err(Error::NonFinite("shape.tilt"));
+        }
+        if !self.bulge_per_step.is_finite() {
+            return Err(Error::NonFinite("shape.bulge_per_step"));
+        }
+        if !self.tilt_per_step.is_finite() {
+            return Err(Error::NonFinite("shape.tilt_per_step"));
+        }
+        if !(self.bulge_per_step.abs() <= MAX_SHAPE_SLOPE
+            && self.tilt_per_step.abs() <= MAX_SHAPE_SLOPE)
+        {
+            return Err(Error::OutOfRange(
+                "shape.bulge_per_step",
+                "per-step terms must be within +-MAX_SHAPE_SLOPE",
+            ));
+        }
+        // A rounding's tolerance: the map is increasing up to a sum of 1.
+        if !(self.bulge.abs() + self.tilt.abs() <= MAX_SHAPE_SLOPE + 1e-6) {
+            return Err(Error::OutOfRange(
+                "shape.bulge",
+                "|bulge| + |tilt| must be at most MAX_SHAPE_SLOPE",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The stroke fraction `u` corrected: `u + u·(1 − u)·(bulge + tilt·(2u − 1))`.
+    fn map_fraction(&self, u: f32) -> f32 {
+        u + u * (1.0 - u) * (self.bulge + self.tilt * (2.0 * u - 1.0))
+    }
+
+    /// The muscle's contraction where `model` predicts `contraction`, with
+    /// the shape at the minimum load (see [`Self::at_load`] for the rest).
+    ///
+    /// The input is clamped to the model's stroke `[R, Rx]` (NaN → `R`), and
+    /// so is the result (the map keeps the stroke ends).
+    pub fn apply(&self, model: &LoadModel, contraction: f32) -> f32 {
+        let (r, rx) = (model.root_contraction(), model.max_contraction());
+        let s = rx - r;
+        if !(s > 0.0) {
+            return r;
+        }
+        let x = if contraction.is_finite() {
+            contraction
+        } else {
+            r
+        };
+        let u = clamp((x - r) / s, 0.0, 1.0);
+        clamp(r + s * self.map_fraction(u), r, rx)
+    }
+
+    /// The inverse of [`Self::apply`]: the model's contraction whose
+    /// corrected value is `contraction` (for a feedforward, which inverts
+    /// the model at the model's contraction). A bisection of
+    /// [`SHAPE_INVERSE_STEPS`] steps (bounded work); clamped like `apply`.
+    pub fn model_contraction(&self, model: &LoadModel, contraction: f32) -> f32 {
+        let (r, rx) = (model.root_contraction(), model.max_contraction());
+        let s = rx - r;
+        if !(s > 0.0) {
+            return r;
+        }
+        let target = if contraction.is_finite() {
+            clamp((contraction - r) / s, 0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (mut lo, mut hi) = (0.0f32, 1.0f32);
+        for _ in 0..SHAPE_INVERSE_STEPS {
+            let mid = 0.5 * (lo + hi);
+            if self.map_fraction(mid) <= target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        clamp(r + s * 0.5 * (lo + hi), r, rx)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coeffs::Coeffs;
+
+    fn model() -> LoadModel {
+        Coeffs::new(Params::DEFAULT)
+            .unwrap()
+            .load_model_clamped(200.0)
+    }
+
+    #[test]
+    fn neutral_is_the_identity_and_the_stroke_ends_stay() {
+        let m = model();
+        let (r, rx) = (m.root_contraction(), m.max_contraction());
+        for k in 0..=20 {
+            let x = r + (rx - r) * k as f32 / 20.0;
+            assert!((ConstraintShape::NEUTRAL.apply(&m, x) - x).abs() < 1e-6);
+        }
+        let s = ConstraintShape {
+            bulge: 0.5,
+            tilt: -0.3,
+            ..ConstraintShape::NEUTRAL
+        };
+        assert!((s.apply(&m, r) - r).abs() < 1e-6);
+        assert!((s.apply(&m, rx) - rx).abs() < 1e-6);
+        // Mid-stroke moves by bulge/4 of the stroke.
+        let mid = 0.5 * (r + rx);
+        assert!((s.apply(&m, mid) - (mid + 0.125 * (rx - r))).abs() < 1e-5);
+    }
+
+    #[test]
+    fn valid_shapes_are_increasing_and_invert() {
+        let m = model();
+        let (r, rx) = (m.root_contraction(), m.max_contraction());
+        for (bulge, tilt) in [
+            (0.9, 0.0),
+            (-0.9, 0.0),
+            (0.45, 0.45),
+            (-0.3, -0.6),
+            (0.0, 0.9),
+        ] {
+            let s = ConstraintShape {
+                bulge,
+                tilt,
+                ..ConstraintShape::NEUTRAL
+            };
+            assert!(s.validate().is_ok());
+            let mut last = f32::NEG_INFINITY;
+            for k in 0..=200 {
+                let x = r + (rx - r) * k as f32 / 200.0;
+                let y = s.apply(&m, x);
+                assert!(y > last || k == 0, "{bulge} {tilt} at {k}");
+                last = y;
+                assert!((s.model_contraction(&m, y) - x).abs() < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn load_terms_are_linear_in_load_steps_and_kept_increasing() {
+        let p = Params::DEFAULT;
+        let s = ConstraintShape {
+            bulge: 0.2,
+            tilt: 0.1,
+            bulge_per_step: 0.1,
+            tilt_per_step: -0.05,
+        };
+        assert!(s.validate().is_ok());
+        let at = s.at_load(&p, p.min_load_n + 2.0 * p.load_step_n);
+        assert!((at.bulge - 0.4).abs() < 1e-6 && at.tilt.abs() < 1e-6);
+        assert_eq!(s.at_load(&p, f32::NAN).bulge, 0.2);
+        let far = s.at_load(&p, 1e9);
+        assert!(far.bulge.abs() + far.tilt.abs() <= MAX_SHAPE_SLOPE + 1e-6);
+        assert!(far.validate().is_ok());
+    }
+
+    #[test]
+    fn out_of_range_and_non_finite_are_refused_and_inputs_clamped() {
+        for (bulge, tilt) in [
+            (0.6, 0.6),
+            (f32::NAN, 0.0),
+            (0.0, f32::INFINITY),
+            (-1.0, 0.0),
+        ] {
+            let s = ConstraintShape {
+                bulge,
+                tilt,
+                ..ConstraintShape::NEUTRAL
+            };
+            assert!(s.validate().is_err());
+        }
+        let m = model();
+        let s = ConstraintShape {
+            bulge: 0.4,
+            tilt: 0.2,
+            ..ConstraintShape::NEUTRAL
+        };
+        for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -5.0, 5.0] {
+            let y = s.apply(&m, x);
+            assert!(y >= m.root_contraction() && y <= m.max_contraction());
+            let z = s.model_contraction(&m, x);
+            assert!(z >= m.root_contraction() && z <= m.max_contraction());
+        }
+    }
+
+    #[test]
+    fn the_simulator_applies_it_to_the_paper_model_on_both_branches() {
+        use crate::effects::Effects;
+        use crate::simulator::Simulator;
+        use crate::tracker::TrackerConfig;
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+        let shape = ConstraintShape {
+            bulge: 0.4,
+            tilt: 0.1,
+            bulge_per_step: -0.1,
+            tilt_per_step: 0.0,
+        };
+        let with = Effects {
+            shape: Some(shape),
+            ..Effects::NONE
+        };
+        let cfg = TrackerConfig::DEFAULT_PRESSURE;
+        let mut plain = Simulator::<4>::new(coeffs, Effects::NONE, cfg, 200.0).unwrap();
+        let mut corrected = Simulator::<4>::new(coeffs, with, cfg, 200.0).unwrap();
+        let m = coeffs.load_model_clamped(200.0);
+        let mut moved = 0.0f32;
+        for k in 0..=1000 {
+            let p = 0.5 * (1.0 - (k as f32 * 0.0126).cos()) * 0.5;
+            let t = k as f32 * 0.02;
+            let x = plain.step(t, p, 200.0);
+            let y = corrected.step(t, p, 200.0);
+            let at = shape.at_load(coeffs.params(), 200.0);
+            assert!((y - at.apply(&m, x)).abs() < 1e-6, "{k}");
+            moved = moved.max((y - x).abs());
+        }
+        assert!(moved > 0.01, "{moved}");
+    }
+}

@@ -1,0 +1,455 @@
+//! The candidate effects: their parameter maps, the fit of one candidate's
+//! parameters on the current base, and the evidence rule.
+
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use pam_core::effects::memory::MIN_MERGE_SPAN;
+use pam_core::effects::rate::RATE_EXPONENT_RANGE;
+use pam_core::effects::shape::MAX_SHAPE_SLOPE;
+use pam_core::effects::{
+    ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
+};
+use pam_core::{Coeffs, Effects, Params};
+use serde::Serialize;
+
+use super::evaluate::{ModelErrors, Setup};
+use super::refit::refit_base;
+use super::DiagnoseConfig;
+
+/// A candidate effect.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectKind {
+    /// Minor loops with wiping-out ([`NonLocalMemory`]).
+    NonLocalMemory,
+    /// Loop height growing with the pressure rate ([`RateDependence`]).
+    RateDependence,
+    /// Slow relaxation after steps ([`Creep`]).
+    Creep,
+    /// Loop height linear in load ([`LoadDependentWidth`]).
+    LoadDependentWidth,
+    /// A static curve outside the cubic family ([`ConstraintShape`]).
+    ConstraintShape,
+}
+
+impl EffectKind {
+    /// Every candidate, in the order they are tried.
+    pub const ALL: [EffectKind; 5] = [
+        EffectKind::NonLocalMemory,
+        EffectKind::RateDependence,
+        EffectKind::Creep,
+        EffectKind::LoadDependentWidth,
+        EffectKind::ConstraintShape,
+    ];
+
+    /// The name used in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectKind::NonLocalMemory => "non_local_memory",
+            EffectKind::RateDependence => "rate_dependence",
+            EffectKind::Creep => "creep",
+            EffectKind::LoadDependentWidth => "load_dependent_width",
+            EffectKind::ConstraintShape => "constraint_shape",
+        }
+    }
+
+    /// Number of parameters the effect adds (the rate's exponent, chosen
+    /// from [`RATE_EXPONENTS`] by the fit, counts as one).
+    pub fn parameter_count(self) -> usize {
+        match self {
+            EffectKind::RateDependence | EffectKind::ConstraintShape => 4,
+            _ => 2,
+        }
+    }
+
+    /// How many leading entries of `theta` the optimiser moves; the rest
+    /// (the rate's exponent) are fixed per start.
+    fn free_count(self) -> usize {
+        match self {
+            EffectKind::RateDependence => 3,
+            EffectKind::ConstraintShape => 4,
+            _ => 2,
+        }
+    }
+
+    /// The regime where its signature should show.
+    pub fn regime(self) -> &'static str {
+        match self {
+            EffectKind::NonLocalMemory => "after_inner_reversal",
+            EffectKind::RateDependence => "fast_ramp",
+            EffectKind::Creep => "hold_after_step",
+            EffectKind::LoadDependentWidth => "per_load",
+            EffectKind::ConstraintShape => "static_shape",
+        }
+    }
+
+    /// Starting points of the fit, in the unbounded coordinates of
+    /// [`Self::apply`].
+    pub(super) fn starts(self) -> Vec<Vec<f64>> {
+        match self {
+            // A rescaled branch that merges within 0.03 of contraction, and
+            // a quicker blend that is not limited.
+            EffectKind::NonLocalMemory => vec![
+                vec![MEMORY_SHAPE.theta(1.0), MERGE_SPAN.theta(0.03)],
+                vec![MEMORY_SHAPE.theta(5.0), MERGE_SPAN.theta(0.5)],
+            ],
+            // One start per exponent: factor 1 at rest, 5 per (MPa/s)^n,
+            // a 0.2 s filter.
+            EffectKind::RateDependence => RATE_EXPONENTS
+                .iter()
+                .map(|&n| {
+                    vec![
+                        logit(1.0 / 4.0),
+                        logit(5.0 / 100.0),
+                        rate_filter_theta(0.2),
+                        n,
+                    ]
+                })
+                .collect(),
+            EffectKind::Creep => vec![
+                vec![logit(0.1 / 0.95), 1.0f64.ln()],
+                vec![logit(0.1 / 0.95), 5.0f64.ln()],
+            ],
+            EffectKind::LoadDependentWidth => vec![vec![logit(1.0 / 4.0), 0.0]],
+            EffectKind::ConstraintShape => vec![vec![0.0; 4]],
+        }
+    }
+
+    /// `effects` with this effect on, its parameters from unbounded `theta`
+    /// (logistic and exponential maps keep them inside their validation
+    /// ranges, so the optimiser needs no bounds).
+    pub fn apply(self, effects: Effects, theta: &[f64]) -> Effects {
+        let t = |i: usize| theta.get(i).copied().unwrap_or(0.0);
+        let mut e = effects;
+        match self {
+            EffectKind::NonLocalMemory => {
+                e.memory = Some(NonLocalMemory {
+                    shape: MEMORY_SHAPE.value(t(0)) as f32,
+                    merge_span: MERGE_SPAN.value(t(1)) as f32,
+                })
+            }
+            EffectKind::RateDependence => {
+                let (n_lo, n_hi) = RATE_EXPONENT_RANGE;
+                let exponent = match theta.get(3) {
+                    Some(n) if n.is_finite() => (*n as f32).clamp(n_lo, n_hi),
+                    _ => 1.0,
+                };
+                e.rate = Some(RateDependence {
+                    scale_at_rest: (4.0 * sigmoid(t(0))) as f32,
+                    scale_per_mpa_per_s: (100.0 * sigmoid(t(1))) as f32,
+                    exponent,
+                    filter_time_s: rate_filter_time(t(2)) as f32,
+                })
+            }
+            EffectKind::Creep => {
+                e.creep = Some(Creep {
+                    gain: (0.95 * sigmoid(t(0))) as f32,
+                    time_constant_s: t(1).exp().clamp(0.02, 100.0) as f32,
+                })
+            }
+            EffectKind::LoadDependentWidth => {
+                e.width = Some(LoadDependentWidth {
+                    scale_at_min_load: (4.0 * sigmoid(t(0))) as f32,
+                    scale_per_step: (4.0 * t(1).tanh()) as f32,
+                })
+            }
+            EffectKind::ConstraintShape => {
+                // Each within half the slope limit: their sum within it.
+                let half = 0.5 * f64::from(MAX_SHAPE_SLOPE);
+                // (`at_load` keeps the sum within it at every load.)
+                e.shape = Some(ConstraintShape {
+                    bulge: (half * t(0).tanh()) as f32,
+                    tilt: (half * t(1).tanh()) as f32,
+                    bulge_per_step: (half * t(2).tanh()) as f32,
+                    tilt_per_step: (half * t(3).tanh()) as f32,
+                })
+            }
+        }
+        e
+    }
+
+    pub(super) fn is_on(self, e: &Effects) -> bool {
+        match self {
+            EffectKind::NonLocalMemory => e.memory.is_some(),
+            EffectKind::RateDependence => e.rate.is_some(),
+            EffectKind::Creep => e.creep.is_some(),
+            EffectKind::LoadDependentWidth => e.width.is_some(),
+            EffectKind::ConstraintShape => e.shape.is_some(),
+        }
+    }
+}
+
+/// Exponents of the rate law the diagnosis tries: the ones pam-core
+/// evaluates with square roots (`powf` is a software routine on the M4).
+pub const RATE_EXPONENTS: [f64; 3] = [0.5, 0.75, 1.0];
+
+/// The rate filter's time constant from its unbounded coordinate: logistic
+/// over `[0.02, 1]` s.
+fn rate_filter_time(theta: f64) -> f64 {
+    (0.02 + 0.98 * sigmoid(theta)).clamp(0.02, 1.0)
+}
+
+fn rate_filter_theta(tau: f64) -> f64 {
+    logit((tau - 0.02) / 0.98)
+}
+
+/// A logarithmic range `[lo, lo·ratio]` (clamped to `[lo, hi]`) mapped from
+/// an unbounded coordinate: `lo·ratio^sigmoid(θ)`.
+#[derive(Clone, Copy)]
+struct LogRange {
+    lo: f64,
+    ratio: f64,
+    hi: f64,
+}
+
+impl LogRange {
+    fn value(self, theta: f64) -> f64 {
+        (self.lo * self.ratio.powf(sigmoid(theta))).clamp(self.lo, self.hi)
+    }
+
+    fn theta(self, value: f64) -> f64 {
+        logit((value / self.lo).ln() / self.ratio.ln())
+    }
+}
+
+/// The memory's `k`: logarithmic over `[0.05, 50]` (the blend is symmetric
+/// in `ln k`).
+const MEMORY_SHAPE: LogRange = LogRange {
+    lo: 0.05,
+    ratio: 1000.0,
+    hi: 50.0,
+};
+
+/// The memory's merge span: logarithmic over `[MIN_MERGE_SPAN, 1]`.
+const MERGE_SPAN: LogRange = LogRange {
+    lo: MIN_MERGE_SPAN as f64,
+    ratio: 1.0 / (MIN_MERGE_SPAN as f64),
+    hi: 1.0,
+};
+
+fn sigmoid(x: f64) -> f64 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+fn logit(p: f64) -> f64 {
+    (p / (1.0 - p)).ln()
+}
+
+/// Fitting one candidate's parameters: residuals on the training samples.
+struct CandidateProblem<'s, 'a> {
+    setup: &'s Setup<'a>,
+    coeffs: Coeffs,
+    kind: EffectKind,
+    base: Effects,
+    /// The parameters the optimiser moves.
+    theta: DVector<f64>,
+    /// The ones it does not (appended to `theta` for [`EffectKind::apply`]).
+    fixed: Vec<f64>,
+}
+
+impl CandidateProblem<'_, '_> {
+    fn full(&self, theta: &[f64]) -> Vec<f64> {
+        theta.iter().chain(&self.fixed).copied().collect()
+    }
+
+    /// Training residuals at `theta` into `out`.
+    fn residuals_into(&self, theta: &[f64], out: &mut [f64]) {
+        let res = self
+            .setup
+            .residuals_with(&self.coeffs, self.kind.apply(self.base, &self.full(theta)));
+        for (o, &i) in out.iter_mut().zip(&self.setup.train_idx) {
+            *o = res[i];
+        }
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for CandidateProblem<'_, '_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        self.theta.copy_from(x);
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.theta.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let mut r = DVector::zeros(self.setup.train_idx.len());
+        self.residuals_into(self.theta.as_slice(), r.as_mut_slice());
+        r.iter().all(|v| v.is_finite()).then_some(r)
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let steps: Vec<f64> = self.theta.iter().map(|t| 1e-3 * (1.0 + t.abs())).collect();
+        let jac = crate::lsq::forward_difference_jacobian(
+            self.theta.as_slice(),
+            &steps,
+            self.setup.train_idx.len(),
+            &|t, out| self.residuals_into(t, out),
+        );
+        jac.iter().all(|v| v.is_finite()).then_some(jac)
+    }
+}
+
+/// One candidate's result in one round.
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateResult {
+    /// Effect name.
+    pub name: &'static str,
+    /// Held-out RMS with the effect added to the current model.
+    pub rms: f64,
+    /// Relative cut of the held-out RMS against the current model.
+    pub improvement: f64,
+    /// Fall of the BIC against the current model (positive is better).
+    pub bic_drop: f64,
+    /// Parameters added.
+    pub parameters: usize,
+    /// Whether it met the evidence rule.
+    pub earned: bool,
+    /// Held-out RMS in the effect's own regime, before and after.
+    pub signature: Signature,
+    /// The fitted effects of the candidate model.
+    pub effects: Effects,
+    /// Full error breakdown.
+    pub errors: ModelErrors,
+    /// The base parameters refitted with the candidate on.
+    pub base_params: Params,
+    /// Their coefficients (not serialised).
+    #[serde(skip)]
+    pub coeffs: Coeffs,
+}
+
+/// Whether the improvement sits in the regime the effect explains.
+#[derive(Clone, Debug, Serialize)]
+pub struct Signature {
+    /// The regime.
+    pub regime: &'static str,
+    /// Held-out RMS there with the current model.
+    pub rms_before: f64,
+    /// Held-out RMS there with the candidate.
+    pub rms_after: f64,
+}
+
+pub(super) fn evaluate_candidate(
+    setup: &Setup<'_>,
+    kind: EffectKind,
+    model: (Params, Coeffs),
+    current: Effects,
+    current_errors: &ModelErrors,
+    current_params: usize,
+    cfg: &DiagnoseConfig,
+) -> CandidateResult {
+    let fit_effect = |coeffs: Coeffs, starts: Vec<Vec<f64>>| -> Vec<f64> {
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for mut start in starts {
+            let fixed = start.split_off(kind.free_count().min(start.len()));
+            let problem = CandidateProblem {
+                setup,
+                coeffs,
+                kind,
+                base: current,
+                theta: DVector::from_vec(start),
+                fixed,
+            };
+            let (problem, report) = LevenbergMarquardt::new()
+                .with_patience(cfg.patience)
+                .minimize(problem);
+            let cost = report.objective_function;
+            if cost.is_finite() && best.as_ref().is_none_or(|(c, _)| cost < *c) {
+                best = Some((cost, problem.full(problem.theta.as_slice())));
+            }
+        }
+        best.map(|(_, t)| t).unwrap_or_default()
+    };
+    // The effect's parameters on the current base, then the base refitted
+    // with the effect on (an effect the base fit could not see biases it:
+    // creep lags every ramp the static curve was fitted to), then the
+    // effect's parameters again on that base.
+    let theta = fit_effect(model.1, kind.starts());
+    let (base_params, coeffs) = refit_base(
+        setup,
+        model.0,
+        model.1,
+        kind.apply(current, &theta),
+        cfg.refit_iterations,
+    );
+    let theta = if cfg.refit_iterations > 0 {
+        fit_effect(coeffs, vec![theta])
+    } else {
+        theta
+    };
+    let effects = kind.apply(current, &theta);
+    let n_params = current_params + kind.parameter_count();
+    let (errors, _) = setup.errors(&coeffs, effects, n_params);
+    let improvement = 1.0 - errors.rms_heldout / current_errors.rms_heldout;
+    let bic_drop = current_errors.bic - errors.bic;
+    let regime_rms = |e: &ModelErrors| -> f64 {
+        match kind {
+            EffectKind::LoadDependentWidth => {
+                // Per load: the worst load's RMS is where a width error shows.
+                e.loads.iter().map(|l| l.rms).fold(f64::NAN, f64::max)
+            }
+            EffectKind::ConstraintShape => e.static_shape,
+            _ => e
+                .regimes
+                .iter()
+                .find(|r| r.regime == kind.regime())
+                .map_or(f64::NAN, |r| r.rms),
+        }
+    };
+    let signature = Signature {
+        regime: kind.regime(),
+        rms_before: regime_rms(current_errors),
+        rms_after: regime_rms(&errors),
+    };
+    let signature_cut = 1.0 - signature.rms_after / signature.rms_before;
+    let earned = improvement >= cfg.min_improvement
+        && bic_drop >= cfg.min_bic_drop
+        && signature_cut >= cfg.min_improvement;
+    CandidateResult {
+        name: kind.name(),
+        rms: errors.rms_heldout,
+        improvement,
+        bic_drop,
+        parameters: kind.parameter_count(),
+        earned,
+        signature,
+        effects,
+        errors,
+        base_params,
+        coeffs,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parameter_maps_stay_valid() {
+        for kind in EffectKind::ALL {
+            for t in [-50.0, -1.0, 0.0, 1.0, 50.0] {
+                let e = kind.apply(Effects::NONE, &[t, -t]);
+                assert!(e.validate().is_ok(), "{kind:?} {t}: {e:?}");
+                assert!(kind.is_on(&e));
+            }
+        }
+        for n in [0.5, 0.75, 1.0, 0.0, 9.0, f64::NAN] {
+            for t in [-50.0, 0.0, 50.0] {
+                let e = EffectKind::RateDependence.apply(Effects::NONE, &[t, -t, t, n]);
+                assert!(e.validate().is_ok(), "{n} {t}: {e:?}");
+            }
+        }
+        for start in EffectKind::RateDependence.starts() {
+            let r = EffectKind::RateDependence
+                .apply(Effects::NONE, &start)
+                .rate
+                .unwrap();
+            assert!(RATE_EXPONENTS.contains(&f64::from(r.exponent)));
+            assert!((r.filter_time_s - 0.2).abs() < 1e-6, "{r:?}");
+        }
+    }
+}

@@ -1,0 +1,217 @@
+//! Simulating a model over the record and measuring its errors.
+
+use pam_core::{Branch, Coeffs, Effects, Simulator, TrackerConfig};
+use serde::Serialize;
+
+use super::regimes::Regimes;
+use super::MEMORY_DEPTH;
+use crate::data::Sample;
+use crate::stats::rms_where;
+
+/// Simulate the model (base `coeffs` plus `effects`) over `samples` from the
+/// measured pressure and load, on the given branches (see
+/// [`hindsight_branches`]); one predicted contraction per sample.
+pub fn simulate(
+    coeffs: &Coeffs,
+    effects: Effects,
+    tracker: TrackerConfig,
+    samples: &[Sample],
+    branches: &[Branch],
+) -> Vec<f64> {
+    let first_load = samples.first().map_or(0.0, |s| s.load_n) as f32;
+    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, effects, tracker, first_load) else {
+        return vec![f64::NAN; samples.len()];
+    };
+    samples
+        .iter()
+        .zip(branches)
+        .map(|(s, &b)| {
+            f64::from(sim.step_on_branch(s.t_s as f32, s.pressure_mpa as f32, s.load_n as f32, b))
+        })
+        .collect()
+}
+
+/// Errors of one model.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelErrors {
+    /// Held-out RMS contraction error.
+    pub rms_heldout: f64,
+    /// Training RMS contraction error.
+    pub rms_train: f64,
+    /// BIC over the effective number of independent training residuals.
+    pub bic: f64,
+    /// Held-out RMS per regime.
+    pub regimes: Vec<RegimeError>,
+    /// Held-out RMS per load.
+    pub loads: Vec<LoadError>,
+    /// The held-out error that depends on the load and the position along
+    /// the stroke alone, both branches pooled: the RMS (weighted by
+    /// samples) of the mean residual per (load, stroke bin) cell. A static curve the
+    /// model cannot follow shows here; a loop-height or rate error, whose
+    /// sign flips between the branches, mostly cancels.
+    pub static_shape: f64,
+}
+
+/// RMS in one regime.
+#[derive(Clone, Debug, Serialize)]
+pub struct RegimeError {
+    /// Regime name.
+    pub regime: String,
+    /// Held-out samples in it.
+    pub samples: usize,
+    /// Held-out RMS contraction error.
+    pub rms: f64,
+}
+
+/// RMS at one load.
+#[derive(Clone, Debug, Serialize)]
+pub struct LoadError {
+    /// Load, N.
+    pub load_n: f64,
+    /// Held-out samples at it.
+    pub samples: usize,
+    /// Held-out RMS contraction error.
+    pub rms: f64,
+}
+
+/// What is shared by every evaluation of one record.
+pub(super) struct Setup<'a> {
+    pub(super) samples: &'a [Sample],
+    pub(super) coeffs: Coeffs,
+    pub(super) tracker: TrackerConfig,
+    pub(super) heldout: Vec<bool>,
+    pub(super) train_idx: Vec<usize>,
+    pub(super) regimes: Regimes,
+    pub(super) branches: Vec<Branch>,
+    /// Effective-sample divisor: the base residual's correlation length.
+    pub(super) corr_len: f64,
+    /// Each sample's bin of measured contraction along the record's stroke
+    /// ([`stroke_bins`]).
+    pub(super) stroke_bin: Vec<usize>,
+}
+
+/// Bins along the stroke of [`stroke_bins`].
+pub const STROKE_BINS: usize = 12;
+
+/// Each sample's bin of measured contraction: [`STROKE_BINS`] equal bins
+/// between the record's 1st and 99th percentiles (clamped to the end bins).
+pub fn stroke_bins(samples: &[Sample]) -> Vec<usize> {
+    let mut x: Vec<f64> = samples
+        .iter()
+        .map(|s| s.contraction)
+        .filter(|x| x.is_finite())
+        .collect();
+    if x.len() < 2 {
+        return vec![0; samples.len()];
+    }
+    x.sort_by(f64::total_cmp);
+    let q = |f: f64| x[((x.len() - 1) as f64 * f).round() as usize];
+    let (lo, hi) = (q(0.01), q(0.99));
+    let w = ((hi - lo) / STROKE_BINS as f64).max(1e-9);
+    samples
+        .iter()
+        .map(|s| {
+            let b = ((s.contraction - lo) / w).floor();
+            if b.is_finite() {
+                b.clamp(0.0, (STROKE_BINS - 1) as f64) as usize
+            } else {
+                0
+            }
+        })
+        .collect()
+}
+
+impl Setup<'_> {
+    fn static_shape(&self, res: &[f64]) -> f64 {
+        // Cells of (load, 25 N bins) × stroke bin; both branches pooled.
+        let mut cells: std::collections::HashMap<(i64, usize), (f64, usize)> =
+            std::collections::HashMap::new();
+        for (i, r) in res.iter().enumerate() {
+            if self.heldout[i] && r.is_finite() {
+                let load = (self.samples[i].load_n / 25.0).round() as i64;
+                let b = self.stroke_bin.get(i).copied().unwrap_or(0);
+                let c = cells.entry((load, b)).or_insert((0.0, 0));
+                c.0 += r;
+                c.1 += 1;
+            }
+        }
+        let total: usize = cells.values().map(|c| c.1).sum();
+        if total == 0 {
+            return f64::NAN;
+        }
+        let ss: f64 = cells.values().map(|(s, c)| s * s / *c as f64).sum();
+        (ss / total as f64).sqrt()
+    }
+
+    pub(super) fn residuals(&self, effects: Effects) -> Vec<f64> {
+        self.residuals_with(&self.coeffs, effects)
+    }
+
+    pub(super) fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
+        simulate(coeffs, effects, self.tracker, self.samples, &self.branches)
+            .iter()
+            .zip(self.samples)
+            .map(|(x, s)| s.contraction - x)
+            .collect()
+    }
+
+    pub(super) fn errors(
+        &self,
+        coeffs: &Coeffs,
+        effects: Effects,
+        n_params: usize,
+    ) -> (ModelErrors, Vec<f64>) {
+        let res = self.residuals_with(coeffs, effects);
+        let (rms_heldout, _) = rms_where(&res, |i| self.heldout[i]);
+        let (rms_train, n_train) = rms_where(&res, |i| !self.heldout[i]);
+        let n_eff = (n_train as f64 / self.corr_len).max(1.0);
+        let bic = n_eff * (rms_train * rms_train).max(1e-300).ln() + n_params as f64 * n_eff.ln();
+        let regimes = self
+            .regimes
+            .named()
+            .iter()
+            .map(|(name, mask)| {
+                let (rms, samples) = rms_where(&res, |i| self.heldout[i] && mask[i]);
+                RegimeError {
+                    regime: name.to_string(),
+                    samples,
+                    rms,
+                }
+            })
+            .collect();
+        let mut loads: Vec<f64> = self
+            .samples
+            .iter()
+            .zip(&self.heldout)
+            .filter(|(_, h)| **h)
+            .map(|(s, _)| s.load_n.round())
+            .collect();
+        loads.sort_by(f64::total_cmp);
+        loads.dedup();
+        let loads = loads
+            .into_iter()
+            .map(|l| {
+                let (rms, samples) = rms_where(&res, |i| {
+                    self.heldout[i] && self.samples[i].load_n.round() == l
+                });
+                LoadError {
+                    load_n: l,
+                    samples,
+                    rms,
+                }
+            })
+            .collect();
+        let static_shape = self.static_shape(&res);
+        (
+            ModelErrors {
+                rms_heldout,
+                rms_train,
+                bic,
+                regimes,
+                loads,
+                static_shape,
+            },
+            res,
+        )
+    }
+}

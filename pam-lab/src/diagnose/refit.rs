@@ -1,0 +1,124 @@
+//! The joint refit of the base model's parameters with effects on.
+
+use nalgebra::DVector;
+use pam_core::{Coeffs, Effects, Params};
+
+use super::evaluate::Setup;
+
+/// Base parameters the joint refit moves: the critical points (the curve's
+/// shape through the stroke), the stroke ends, the ellipse height and the
+/// load family (the cubic's growth, the regressions of the stroke ends).
+pub const BASE_REFIT_FIELDS: [&str; 10] = [
+    "tangency.pressure_mpa",
+    "inflection.pressure_mpa",
+    "max_contraction",
+    "ellipse_height_mpa",
+    "c_growth_per_step",
+    "root_contraction",
+    "tangency.contraction",
+    "inflection.contraction",
+    "root_regression_per_step",
+    "max_regression_per_step",
+];
+
+fn base_field(p: &mut Params, k: usize) -> Option<&mut f32> {
+    match k {
+        0 => Some(&mut p.points.tangency.pressure_mpa),
+        1 => Some(&mut p.points.inflection.pressure_mpa),
+        2 => Some(&mut p.points.max_contraction),
+        3 => Some(&mut p.ellipse_height_mpa),
+        4 => Some(&mut p.c_growth_per_step),
+        5 => Some(&mut p.points.root_contraction),
+        6 => Some(&mut p.points.tangency.contraction),
+        7 => Some(&mut p.points.inflection.contraction),
+        8 => Some(&mut p.root_regression_per_step),
+        9 => Some(&mut p.max_regression_per_step),
+        _ => None,
+    }
+}
+
+/// Refit [`BASE_REFIT_FIELDS`] of `params` with `effects` on, on the
+/// training samples' simulated residuals: `iterations` damped Gauss–Newton
+/// steps (forward-difference Jacobian, a step is kept only when the
+/// training cost falls, the damping grows when it does not). Returns the
+/// input when nothing improves or a step leaves the valid parameters.
+pub(super) fn refit_base(
+    setup: &Setup<'_>,
+    params: Params,
+    coeffs: Coeffs,
+    effects: Effects,
+    iterations: usize,
+) -> (Params, Coeffs) {
+    let train = |c: &Coeffs| -> Option<DVector<f64>> {
+        let res = setup.residuals_with(c, effects);
+        let v = DVector::from_iterator(
+            setup.train_idx.len(),
+            setup.train_idx.iter().map(|&i| res[i]),
+        );
+        v.iter().all(|r| r.is_finite()).then_some(v)
+    };
+    let with = |p: &Params, delta: &[f64]| -> Option<(Params, Coeffs)> {
+        let mut q = *p;
+        for (k, d) in delta.iter().enumerate() {
+            let f = base_field(&mut q, k)?;
+            *f += *d as f32;
+        }
+        Coeffs::new(q).ok().map(|c| (q, c))
+    };
+    let (mut p, mut c) = (params, coeffs);
+    let Some(mut r) = train(&c) else {
+        return (p, c);
+    };
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-3;
+    let m = BASE_REFIT_FIELDS.len();
+    for _ in 0..iterations {
+        let h: Vec<f64> = (0..m)
+            .map(|k| {
+                let mut q = p;
+                let v = base_field(&mut q, k).map_or(0.0, |f| f64::from(*f));
+                1e-3 * v.abs().max(1e-2)
+            })
+            .collect();
+        // A step that leaves the valid parameters gives NaN residuals,
+        // and a NaN column ends the refit.
+        let jac = crate::lsq::forward_difference_jacobian(&vec![0.0; m], &h, r.len(), &|d, out| {
+            match with(&p, d).and_then(|(_, c)| train(&c)) {
+                Some(v) => out.copy_from_slice(v.as_slice()),
+                None => out.fill(f64::NAN),
+            }
+        });
+        if jac.iter().any(|v| !v.is_finite()) {
+            return (p, c);
+        }
+        let jtj = jac.transpose() * &jac;
+        let jtr = jac.transpose() * &r;
+        let mut improved = false;
+        for _ in 0..4 {
+            let mut a = jtj.clone();
+            for k in 0..m {
+                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
+            }
+            let Some(step) = a.lu().solve(&(-&jtr)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            if let Some((q, qc)) = with(&p, step.as_slice()) {
+                if let Some(qr) = train(&qc) {
+                    let qcost = qr.norm_squared();
+                    if qcost < cost {
+                        (p, c, r, cost) = (q, qc, qr, qcost);
+                        lambda = (lambda * 0.3).max(1e-6);
+                        improved = true;
+                        break;
+                    }
+                }
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    (p, c)
+}

@@ -1,0 +1,194 @@
+//! The diagnosis' report: its structure, the summary on stdout and the one
+//! function that writes files.
+
+use std::path::Path;
+
+use pam_core::{Effects, Params};
+use serde::Serialize;
+
+use super::candidates::CandidateResult;
+use super::evaluate::ModelErrors;
+use super::regimes::Regimes;
+use crate::data::Record;
+
+/// One round of candidate selection.
+#[derive(Clone, Debug, Serialize)]
+pub struct Round {
+    /// Held-out RMS of the model the round started from.
+    pub rms_start: f64,
+    /// Every candidate tried.
+    pub candidates: Vec<CandidateResult>,
+    /// The effect added, if any earned it.
+    pub added: Option<&'static str>,
+}
+
+/// The outcome of a diagnosis.
+#[derive(Clone, Debug, Serialize)]
+pub struct DiagnoseReport {
+    /// The record diagnosed.
+    pub source: String,
+    /// Effects added, in order (empty: `none`).
+    pub effects_added: Vec<&'static str>,
+    /// What was named: the first effect added, or `none`.
+    pub named: &'static str,
+    /// Held-out RMS contraction error of the base model.
+    pub rms_before: f64,
+    /// The same after the additions.
+    pub rms_after: f64,
+    /// Measurement noise estimated from the record
+    /// ([`crate::stats::noise_floor`]); `contraction` is the floor no model
+    /// can go below on held-out data.
+    pub noise: crate::stats::NoiseFloor,
+    /// Held-out samples at loads beyond the training loads (their error is
+    /// partly the load family's extrapolation).
+    pub extrapolated_samples: usize,
+    /// Model error above the noise before: `sqrt(rms_before² − noise²)`.
+    pub above_noise_before: f64,
+    /// The same after the additions.
+    pub above_noise_after: f64,
+    /// Share of the error above the noise the added effects removed
+    /// ([`DiagnoseReport::share_removed`]).
+    pub above_noise_removed: f64,
+    /// First round's candidates against the base model: name and held-out RMS.
+    pub candidates: Vec<CandidateSummary>,
+    /// Every round in full.
+    pub rounds: Vec<Round>,
+    /// The base model's errors.
+    pub base: ModelErrors,
+    /// The final model's errors.
+    pub after: ModelErrors,
+    /// Held-out RMS of the paper's model as `fit::fit` gives it, before the
+    /// base refit on the simulated record.
+    pub rms_paper_fit: f64,
+    /// The base model's parameters (after its refit).
+    pub base_params: Params,
+    /// The final model's base parameters (refitted jointly with its effects).
+    pub final_params: Params,
+    /// The final model's effects.
+    pub effects: Effects,
+    /// Samples held out and trained on.
+    pub heldout_samples: usize,
+    /// Training samples.
+    pub train_samples: usize,
+    /// Correlation length of the base residual, samples.
+    pub correlation_length: f64,
+    /// The evidence rule's thresholds.
+    pub min_improvement: f64,
+    /// BIC threshold.
+    pub min_bic_drop: f64,
+    /// Predicted contraction of the base and final models (not serialised).
+    #[serde(skip)]
+    pub predicted_base: Vec<f64>,
+    /// Final model prediction (not serialised).
+    #[serde(skip)]
+    pub predicted_after: Vec<f64>,
+    /// Held-out mask (not serialised).
+    #[serde(skip)]
+    pub heldout: Vec<bool>,
+    /// Regimes (not serialised).
+    #[serde(skip)]
+    pub regimes: Regimes,
+}
+
+impl DiagnoseReport {
+    /// Share of the model error above the noise that the added effects
+    /// removed: `1 − above_noise_after / above_noise_before` (0 when the
+    /// base is already at the noise).
+    pub fn share_removed(&self) -> f64 {
+        self.above_noise_removed
+    }
+}
+
+/// A candidate's name and held-out RMS (first round).
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateSummary {
+    /// Effect name.
+    pub name: &'static str,
+    /// Held-out RMS contraction error with it added to the base model.
+    pub rms: f64,
+}
+
+/// A short summary a person can read.
+pub fn summary(r: &DiagnoseReport) -> String {
+    let mut s = String::new();
+    let pct = |x: f64| 100.0 * x;
+    s.push_str(&format!(
+        "diagnose {}: {} training / {} held-out samples (one segment in 3 held out: cycles cut at load changes, drawn)\n",
+        r.source, r.train_samples, r.heldout_samples
+    ));
+    s.push_str(&format!(
+        "base model (paper): held-out RMS contraction error {:.5}\n",
+        r.rms_before
+    ));
+    if r.extrapolated_samples > 0 {
+        s.push_str(&format!(
+            "  {} held-out samples lie beyond the training loads: their error includes the load family's extrapolation\n",
+            r.extrapolated_samples
+        ));
+    }
+    let worst = r
+        .base
+        .regimes
+        .iter()
+        .filter(|g| g.samples > 0)
+        .max_by(|a, b| a.rms.total_cmp(&b.rms));
+    if let Some(w) = worst {
+        s.push_str(&format!(
+            "  largest disagreement: {} (RMS {:.5} over {} held-out samples)\n",
+            w.regime, w.rms, w.samples
+        ));
+    }
+    for (k, round) in r.rounds.iter().enumerate() {
+        s.push_str(&format!(
+            "round {}: candidates against RMS {:.5}\n",
+            k + 1,
+            round.rms_start
+        ));
+        for c in &round.candidates {
+            s.push_str(&format!(
+                "  {:<22} RMS {:.5}  ({:+.1} %, BIC drop {:>8.1}, {} in {}: {:.5} -> {:.5}){}\n",
+                c.name,
+                c.rms,
+                -pct(c.improvement),
+                c.bic_drop,
+                c.parameters,
+                c.signature.regime,
+                c.signature.rms_before,
+                c.signature.rms_after,
+                if c.earned { "  earns it" } else { "" }
+            ));
+        }
+        match round.added {
+            Some(n) => s.push_str(&format!("  -> added {n}\n")),
+            None => s.push_str("  -> no candidate earns its parameters\n"),
+        }
+    }
+    s.push_str(&format!(
+        "named: {}; effects added: [{}]\nheld-out RMS {:.5} -> {:.5} ({:.1} % lower)\n",
+        r.named,
+        r.effects_added.join(", "),
+        r.rms_before,
+        r.rms_after,
+        pct(1.0 - r.rms_after / r.rms_before)
+    ));
+    s.push_str(&format!(
+        "noise floor {:.5} (from {} slow samples); error above it {:.5} -> {:.5} ({:.1} % removed)\n",
+        r.noise.contraction,
+        r.noise.samples,
+        r.above_noise_before,
+        r.above_noise_after,
+        pct(r.share_removed())
+    ));
+    s
+}
+
+/// Write every output of the diagnosis into `dir`: `report.json`, the
+/// model it ends with (`model.json`, `model.blob`, `model_params.rs`, as
+/// `fit` writes them, effects included) and `residual.png`, `loops.png`, all or none ([`crate::output::OutputSet`],
+/// staged by [`crate::commands::stage_diagnose`]); an error names the path.
+pub fn write_outputs(r: &DiagnoseReport, record: &Record, dir: &Path) -> anyhow::Result<()> {
+    let mut set = crate::output::OutputSet::new();
+    crate::commands::stage_diagnose(&mut set, dir, r, record, true)?;
+    set.commit()?;
+    Ok(())
+}
