@@ -495,7 +495,7 @@ mod tests {
     #[test]
     fn unknown_flags_stray_fields_and_invalid_effects_are_refused() {
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
-        b[64] = 1 << 4;
+        b[64] = 1 << 5;
         refresh_crc(&mut b);
         assert_eq!(decode_model(&b), Err(Error::Blob("unknown effect flags")));
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
