@@ -10,9 +10,10 @@
 
 use libfuzzer_sys::fuzz_target;
 use pam_core::effects::{
-    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence, Simulator,
+    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
     MAX_OFFSET_SCALE,
 };
+use pam_core::Simulator;
 use pam_fuzz::Floats;
 
 const N: usize = 4;
