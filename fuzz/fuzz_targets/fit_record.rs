@@ -26,10 +26,20 @@ fuzz_target!(|data: &[u8]| {
         Ok(outcome) => {
             let params = outcome.report.params;
             assert!(pam_core::Coeffs::new(params).is_ok());
-            let blob = &outcome.files.iter().find(|f| f.0 == "model.blob").unwrap().1;
+            let blob = &outcome
+                .files
+                .iter()
+                .find(|f| f.0 == "model.blob")
+                .unwrap()
+                .1;
             let back = pam_core::blob::decode_params(blob).expect("blob decodes");
             assert_eq!(back, params);
-            let json = &outcome.files.iter().find(|f| f.0 == "model.json").unwrap().1;
+            let json = &outcome
+                .files
+                .iter()
+                .find(|f| f.0 == "model.json")
+                .unwrap()
+                .1;
             let m: pam_lab::model_file::ModelFile = serde_json::from_slice(json).expect("json");
             assert_eq!(m.params, params);
             let text = commands::fit_text(&outcome, &record, &cfg);
