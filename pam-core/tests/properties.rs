@@ -185,7 +185,12 @@ mod memory_inverse {
             turns in proptest::collection::vec(0.0f32..=0.5, 0..10),
             t in 0.0f32..=1.0,
             load in 100.0f32..=600.0,
-            shape in 0.5f32..=20.0,
+            // Up to 4: beyond it a minor loop bends back on itself (not
+            // monotone in pressure), so a contraction has several pressures
+            // and the one the inverse picks may lie where a wipe-out moves
+            // the curve (seen at shape 19.9: 1.9e-3 off). The finiteness
+            // test below covers every shape.
+            shape in 0.5f32..=4.0,
             merge_span in prop_oneof![Just(1.0f32), 0.02f32..=1.0],
             br in branch(),
         ) {

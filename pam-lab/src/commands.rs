@@ -67,9 +67,9 @@ pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
             line: 0,
             column: Some("load_n".into()),
             kind: data::DataErrorKind::TooFewSamples(format!(
-                "diagnose holds out alternate blocks of one load (within 1 N), but the load \
-                 changes so often that the {} samples make {blocks} blocks of {:.1} samples on \
-                 average: it needs an isotonic record that logs its hung load (an isometric \
+                "diagnose holds out whole stretches of one load (within 1 N), but the load \
+                 changes so often that the {} samples make {blocks} stretches of {:.1} samples \
+                 on average: it needs an isotonic record that logs its hung load (an isometric \
                  record's force or a noisy load cell cannot be split so)",
                 record.len(),
                 mean_len

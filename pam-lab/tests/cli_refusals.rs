@@ -863,7 +863,7 @@ fn diagnose_load_that_never_holds() {
             let load: f64 = f[1].parse().unwrap();
             f[1] = format!("{}", load + 3.0 * ((i * 7919 % 13) as f64 / 6.0 - 1.0));
         })),
-        &["error: bad.csv: column `load_n`: too few samples to identify the model: diagnose holds out alternate blocks of one load (within 1 N)"],
+        &["error: bad.csv: column `load_n`: too few samples to identify the model: diagnose holds out whole stretches of one load (within 1 N)"],
     );
 }
 

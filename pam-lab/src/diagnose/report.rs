@@ -146,15 +146,21 @@ pub fn summary(r: &DiagnoseReport) -> String {
         ));
         for c in &round.candidates {
             s.push_str(&format!(
-                "  {:<22} RMS {:.5}  ({:+.1} %, BIC drop {:>8.1}, {} in {}: {:.5} -> {:.5}){}\n",
+                "  {:<22} RMS {:.5}  ({:+.1} %, BIC drop {:>8.1}, {} in {}: {}){}\n",
                 c.name,
                 c.rms,
                 -pct(c.improvement),
                 c.bic_drop,
                 c.parameters,
                 c.signature.regime,
-                c.signature.rms_before,
-                c.signature.rms_after,
+                if c.signature.rms_before.is_finite() && c.signature.rms_after.is_finite() {
+                    format!(
+                        "{:.5} -> {:.5}",
+                        c.signature.rms_before, c.signature.rms_after
+                    )
+                } else {
+                    "no held-out samples there".to_string()
+                },
                 if c.earned { "  earns it" } else { "" }
             ));
         }
