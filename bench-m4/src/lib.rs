@@ -136,32 +136,62 @@ impl<const N: usize, const L: usize> PiTable<N, L> {
     }
 }
 
+/// The play (backlash) operators both Prandtl–Ishlinskii models run:
+/// `play_r(p)` follows `p` at a distance of at most its threshold `r`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PlayOperators<const N: usize> {
+    thresholds_mpa: [f32; N],
+    last_mpa: f32,
+    plays: [f32; N],
+}
+
+impl<const N: usize> PlayOperators<N> {
+    /// Every operator at `pressure_mpa` (0 when it is not finite).
+    fn new(thresholds_mpa: [f32; N], pressure_mpa: f32) -> Self {
+        let p = if pressure_mpa.is_finite() {
+            pressure_mpa
+        } else {
+            0.0
+        };
+        PlayOperators {
+            thresholds_mpa,
+            last_mpa: p,
+            plays: [p; N],
+        }
+    }
+
+    /// Move the operators to `pressure_mpa` (a non-finite pressure holds
+    /// them).
+    #[inline(always)]
+    fn update(&mut self, pressure_mpa: f32) {
+        if !pressure_mpa.is_finite() {
+            return;
+        }
+        let p = pressure_mpa;
+        self.last_mpa = p;
+        for (z, &r) in self.plays.iter_mut().zip(self.thresholds_mpa.iter()) {
+            *z = clamp(*z, p - r, p + r);
+        }
+    }
+}
+
 /// A running Prandtl–Ishlinskii model: active coefficients and the play
 /// operators' outputs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PrandtlIshlinskii<const N: usize> {
-    thresholds_mpa: [f32; N],
+    operators: PlayOperators<N>,
     coeffs: PiCoeffs<N>,
     load_n: f32,
-    last_mpa: f32,
-    plays: [f32; N],
 }
 
 impl<const N: usize> PrandtlIshlinskii<N> {
     /// A model at `load_n` with every operator at `pressure_mpa` (the
     /// muscle at rest at that pressure).
     pub fn new<const L: usize>(table: &PiTable<N, L>, load_n: f32, pressure_mpa: f32) -> Self {
-        let p = if pressure_mpa.is_finite() {
-            pressure_mpa
-        } else {
-            0.0
-        };
         PrandtlIshlinskii {
-            thresholds_mpa: table.thresholds_mpa,
+            operators: PlayOperators::new(table.thresholds_mpa, pressure_mpa),
             coeffs: table.at_load(load_n),
             load_n,
-            last_mpa: p,
-            plays: [p; N],
         }
     }
 
@@ -172,12 +202,12 @@ impl<const N: usize> PrandtlIshlinskii<N> {
 
     /// The play operators' outputs, MPa.
     pub fn plays(&self) -> &[f32; N] {
-        &self.plays
+        &self.operators.plays
     }
 
     /// The last finite pressure, MPa.
     pub fn last_mpa(&self) -> f32 {
-        self.last_mpa
+        self.operators.last_mpa
     }
 
     /// Switch the active load when `load_n` is more than
@@ -195,22 +225,15 @@ impl<const N: usize> PrandtlIshlinskii<N> {
     /// holds them).
     #[inline(always)]
     pub fn update_state(&mut self, pressure_mpa: f32) {
-        if !pressure_mpa.is_finite() {
-            return;
-        }
-        let p = pressure_mpa;
-        self.last_mpa = p;
-        for (z, &r) in self.plays.iter_mut().zip(self.thresholds_mpa.iter()) {
-            *z = clamp(*z, p - r, p + r);
-        }
+        self.operators.update(pressure_mpa);
     }
 
     /// The predicted contraction for the current state.
     #[inline(always)]
     pub fn output(&self) -> f32 {
         let c = &self.coeffs;
-        let mut x = c.bias + c.linear * self.last_mpa;
-        for (&w, &z) in c.weights.iter().zip(self.plays.iter()) {
+        let mut x = c.bias + c.linear * self.operators.last_mpa;
+        for (&w, &z) in c.weights.iter().zip(self.operators.plays.iter()) {
             x += w * z;
         }
         x
@@ -292,27 +315,18 @@ impl<const N: usize, const L: usize> GpiTable<N, L> {
 /// `x = b + c₁p + c₂p² + c₃p³ + Σ w_i·play_{r_i}(p)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GeneralizedPi<const N: usize> {
-    thresholds_mpa: [f32; N],
+    operators: PlayOperators<N>,
     coeffs: GpiCoeffs<N>,
     load_n: f32,
-    last_mpa: f32,
-    plays: [f32; N],
 }
 
 impl<const N: usize> GeneralizedPi<N> {
     /// A model at `load_n` with every operator at `pressure_mpa`.
     pub fn new<const L: usize>(table: &GpiTable<N, L>, load_n: f32, pressure_mpa: f32) -> Self {
-        let p = if pressure_mpa.is_finite() {
-            pressure_mpa
-        } else {
-            0.0
-        };
         GeneralizedPi {
-            thresholds_mpa: table.thresholds_mpa,
+            operators: PlayOperators::new(table.thresholds_mpa, pressure_mpa),
             coeffs: table.at_load(load_n),
             load_n,
-            last_mpa: p,
-            plays: [p; N],
         }
     }
 
@@ -323,12 +337,12 @@ impl<const N: usize> GeneralizedPi<N> {
 
     /// The play operators' outputs, MPa.
     pub fn plays(&self) -> &[f32; N] {
-        &self.plays
+        &self.operators.plays
     }
 
     /// The last finite pressure, MPa.
     pub fn last_mpa(&self) -> f32 {
-        self.last_mpa
+        self.operators.last_mpa
     }
 
     /// Switch the active load when `load_n` is more than
@@ -346,23 +360,16 @@ impl<const N: usize> GeneralizedPi<N> {
     /// holds them).
     #[inline(always)]
     pub fn update_state(&mut self, pressure_mpa: f32) {
-        if !pressure_mpa.is_finite() {
-            return;
-        }
-        let p = pressure_mpa;
-        self.last_mpa = p;
-        for (z, &r) in self.plays.iter_mut().zip(self.thresholds_mpa.iter()) {
-            *z = clamp(*z, p - r, p + r);
-        }
+        self.operators.update(pressure_mpa);
     }
 
     /// The predicted contraction for the current state.
     #[inline(always)]
     pub fn output(&self) -> f32 {
         let c = &self.coeffs;
-        let p = self.last_mpa;
+        let p = self.operators.last_mpa;
         let mut x = c.bias + p * (c.cubic[0] + p * (c.cubic[1] + p * c.cubic[2]));
-        for (&w, &z) in c.weights.iter().zip(self.plays.iter()) {
+        for (&w, &z) in c.weights.iter().zip(self.operators.plays.iter()) {
             x += w * z;
         }
         x
