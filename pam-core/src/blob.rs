@@ -157,10 +157,25 @@ pub fn decode_params(bytes: &[u8]) -> Result<Params, Error> {
     if u16::from_le_bytes([bytes[4], bytes[5]]) != BLOB_VERSION {
         return Err(Error::Blob("unsupported version"));
     }
-    if usize::from(u16::from_le_bytes([bytes[6], bytes[7]])) != PAYLOAD_LEN {
+    let body = checked_body(bytes, PAYLOAD_LEN)?;
+    let mut f = [0f32; PAYLOAD_FIELDS];
+    for (v, chunk) in f.iter_mut().zip(bytes[8..body].chunks_exact(4)) {
+        *v = f32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+    }
+    Ok(from_fields(&f))
+}
+
+/// The framing both versions share after magic and version: the blob is
+/// exactly header, `payload_len` bytes and CRC long, its header says
+/// `payload_len`, and the CRC matches. Returns where the payload ends.
+fn checked_body(bytes: &[u8], payload_len: usize) -> Result<usize, Error> {
+    let body = 8 + payload_len;
+    if bytes.len() != body + 4 {
+        return Err(Error::Blob("wrong length"));
+    }
+    if usize::from(u16::from_le_bytes([bytes[6], bytes[7]])) != payload_len {
         return Err(Error::Blob("wrong payload length"));
     }
-    let body = 8 + PAYLOAD_LEN;
     let stored = u32::from_le_bytes([
         bytes[body],
         bytes[body + 1],
@@ -170,11 +185,7 @@ pub fn decode_params(bytes: &[u8]) -> Result<Params, Error> {
     if crc32(&bytes[..body]) != stored {
         return Err(Error::Blob("CRC mismatch"));
     }
-    let mut f = [0f32; PAYLOAD_FIELDS];
-    for (v, chunk) in f.iter_mut().zip(bytes[8..body].chunks_exact(4)) {
-        *v = f32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
-    }
-    Ok(from_fields(&f))
+    Ok(body)
 }
 
 /// The effect flags and fields of `e`, in the version-2 layout.
@@ -302,22 +313,7 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
     match u16::from_le_bytes([bytes[4], bytes[5]]) {
         BLOB_VERSION => decode_params(bytes).map(|p| (p, Effects::NONE)),
         BLOB_VERSION_V2 => {
-            if bytes.len() != BLOB_V2_LEN {
-                return Err(Error::Blob("wrong length"));
-            }
-            if usize::from(u16::from_le_bytes([bytes[6], bytes[7]])) != PAYLOAD_V2_LEN {
-                return Err(Error::Blob("wrong payload length"));
-            }
-            let body = 8 + PAYLOAD_V2_LEN;
-            let stored = u32::from_le_bytes([
-                bytes[body],
-                bytes[body + 1],
-                bytes[body + 2],
-                bytes[body + 3],
-            ]);
-            if crc32(&bytes[..body]) != stored {
-                return Err(Error::Blob("CRC mismatch"));
-            }
+            checked_body(bytes, PAYLOAD_V2_LEN)?;
             let word = |i: usize| [bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]];
             let mut f = [0f32; PAYLOAD_FIELDS];
             for (k, v) in f.iter_mut().enumerate() {
