@@ -13,6 +13,9 @@
 
 use std::path::PathBuf;
 
+use host_sim::characterisation::{
+    isotonic_run_on, run_moves, IsotonicProtocol, MOVES_WITH_FAST_CYCLE, SETTLE_S,
+};
 use host_sim::plant::MuscleParams;
 use host_sim::pneumatics::PneumaticParams;
 use host_sim::rig::IsometricClamp;
@@ -25,59 +28,23 @@ const LOADS_N: [f64; 4] = [100.0, 200.0, 300.0, 400.0];
 /// Contractions the isometric record holds.
 const HOLDS: [f64; 3] = [0.10, 0.14, 0.18];
 
-/// Pressure moves at each load after 2 s at 0 MPa: `(to MPa, rate MPa/s)`.
-/// Two full cycles at 0.05 MPa/s, reversals inside the loop, one fast
-/// cycle at 0.2 MPa/s.
-const MOVES: [(f64, f64); 11] = [
-    (0.5, 0.05),
-    (0.0, 0.05),
-    (0.5, 0.05),
-    (0.0, 0.05),
-    (0.3, 0.05),
-    (0.15, 0.05),
-    (0.4, 0.05),
-    (0.25, 0.05),
-    (0.0, 0.05),
-    (0.5, 0.2),
-    (0.0, 0.2),
-];
-
-/// Run the protocol once at the rig's present load or clamp.
+/// The example records' protocol at the rig's present load or clamp.
 fn protocol(rig: &mut Rig, out: &mut Vec<Sample>) {
-    let dt = 1.0 / LOG_HZ;
-    for _ in 0..(2.0 * LOG_HZ) as usize {
-        out.push(rig.measure());
-        rig.advance_regulated(0.0, dt);
-    }
-    let mut p = 0.0;
-    for (to, rate) in MOVES {
-        let n = (to - p).abs() / rate / dt;
-        let n = n.round() as usize;
-        let from = p;
-        for k in 0..n {
-            out.push(rig.measure());
-            let target = from + (to - from) * (k + 1) as f64 / n as f64;
-            rig.advance_regulated(target, dt);
-        }
-        p = to;
-    }
+    run_moves(rig, &MOVES_WITH_FAST_CYCLE, SETTLE_S, LOG_HZ, out);
 }
 
-/// An isotonic record. Its load column is the hung load, as a test log
-/// records the weight it hangs (the isometric record's is the load cell's
-/// reading: there the force is the measurement).
+/// An isotonic record (the hung load in the load column).
 fn isotonic(muscle: MuscleParams, seed: u64) -> Vec<Sample> {
-    let mut rig = Rig::new(muscle, PneumaticParams::DEFAULT, LOADS_N[0], seed);
-    let mut out = Vec::new();
-    for load in LOADS_N {
-        rig.set_load_n(load);
-        let from = out.len();
-        protocol(&mut rig, &mut out);
-        for s in &mut out[from..] {
-            s.load_n = load;
-        }
-    }
-    out
+    let rig = Rig::new(muscle, PneumaticParams::DEFAULT, LOADS_N[0], seed);
+    isotonic_run_on(
+        rig,
+        &IsotonicProtocol {
+            loads_n: &LOADS_N,
+            moves: &MOVES_WITH_FAST_CYCLE,
+            settle_s: SETTLE_S,
+            log_rate_hz: LOG_HZ,
+        },
+    )
 }
 
 fn isometric(seed: u64) -> Vec<Sample> {

@@ -7,7 +7,7 @@ use crate::hal_mocks::{
 };
 use crate::rig::Rig;
 use crate::scenarios::Scenario;
-use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, ValveCommand};
+use firmware::controller::{Controller, ControllerConfig, Fault, Feedforward, Io, ValveCommand};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
 use pam_core::effects::NonLocalMemory;
 use pam_core::{Branch, Coeffs, Params};
@@ -24,6 +24,10 @@ pub enum Mode {
     /// [`Feedforward::HysteresisMemory`] ([`MEMORY`]): minor loops instead of
     /// the `2·be` jump at a branch switch.
     FeedforwardMemoryPi,
+    /// The controller booted from the blob `pam-lab diagnose` wrote: the
+    /// model with the effects the diagnosis added, as the firmware's
+    /// feedforward runs it ([`crate::end_to_end`]).
+    DiagnosedFeedforwardPi,
     /// PI feedback alone: the same controller, model and gains with
     /// [`Feedforward::Off`], and the integrator limit raised to
     /// [`PI_ONLY_INTEGRAL_LIMIT_MPA`] so that PI can reach the whole
@@ -38,6 +42,7 @@ impl Mode {
         match self {
             Mode::FeedforwardPi => "FF+PI",
             Mode::FeedforwardMemoryPi => "FF(mem)+PI",
+            Mode::DiagnosedFeedforwardPi => "FF(diag)+PI",
             Mode::PiOnly => "PI",
         }
     }
@@ -175,6 +180,9 @@ pub struct Run {
     pub trace: Vec<TraceRow>,
     /// Statistics.
     pub metrics: Metrics,
+    /// The first fault the controller went to its safe state for, and when
+    /// (s); `None` for a run without one.
+    pub first_fault: Option<(f64, Fault)>,
 }
 
 /// Non-local memory of [`Mode::FeedforwardMemoryPi`]: pam-core's linear
@@ -185,7 +193,7 @@ pub const MEMORY: NonLocalMemory = NonLocalMemory::with_shape(1.0);
 pub fn controller_config(mode: Mode, cfg: &BenchConfig) -> ControllerConfig {
     let mut c = cfg.controller;
     match mode {
-        Mode::FeedforwardPi => {}
+        Mode::FeedforwardPi | Mode::DiagnosedFeedforwardPi => {}
         Mode::FeedforwardMemoryPi => c.feedforward = Feedforward::HysteresisMemory(MEMORY),
         Mode::PiOnly => {
             c.feedforward = Feedforward::Off;
@@ -202,10 +210,24 @@ pub fn controller_config(mode: Mode, cfg: &BenchConfig) -> ControllerConfig {
 /// set-up error, not a run-time condition).
 pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
     let load0 = scenario.load_at(0.0);
-    let rig: SharedRig = Rc::new(RefCell::new(Rig::reference(load0, cfg.seed)));
+    let rig = Rig::reference(load0, cfg.seed);
     let ctl_cfg = controller_config(mode, cfg);
     let coeffs = Coeffs::new(cfg.params).expect("bench parameters");
-    let mut ctl = Controller::new(coeffs, ctl_cfg, load0 as f32).expect("controller config");
+    let ctl = Controller::new(coeffs, ctl_cfg, load0 as f32).expect("controller config");
+    run_controller(scenario, rig, ctl, mode, cfg.warmup_s)
+}
+
+/// Run `scenario` on `rig` with the controller `ctl` (however it was
+/// configured: from parameters or booted from a blob); `mode` labels the
+/// run, `warmup_s` is left out of the error statistics.
+pub fn run_controller(
+    scenario: &Scenario,
+    rig: Rig,
+    mut ctl: Controller,
+    mode: Mode,
+    warmup_s: f64,
+) -> Run {
+    let rig: SharedRig = Rc::new(RefCell::new(rig));
     let inlet = SimPwm::new();
     let exhaust = SimPwm::new();
     let mut io = Io {
@@ -215,11 +237,12 @@ pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
         valve: ValvePair::new(inlet.clone(), exhaust.clone(), ValvePairConfig::DEFAULT)
             .expect("valve config"),
     };
-    let dt = f64::from(ctl_cfg.dt_s);
+    let dt = f64::from(ctl.config().dt_s);
     let n = (scenario.duration_s / dt).round() as usize;
     let mut trace = Vec::with_capacity(n);
     let mut switch_idx = Vec::new();
     let mut load_switch_idx: Vec<(usize, f32)> = Vec::new();
+    let mut first_fault = None;
     for k in 0..n {
         let t = k as f64 * dt;
         let load = scenario.load_at(t);
@@ -228,6 +251,9 @@ pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
         let step = ctl.step(&mut io, reference as f32);
         if step.tracker.branch_switch.is_some() {
             switch_idx.push(k);
+        }
+        if first_fault.is_none() {
+            first_fault = step.new_fault.map(|f| (t, f));
         }
         if let Some(s) = step.tracker.load_switch {
             load_switch_idx.push((k, s.to_n));
@@ -262,7 +288,7 @@ pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
         &trace,
         &switch_idx,
         &load_switch_idx,
-        cfg.warmup_s,
+        warmup_s,
         dt,
     );
     Run {
@@ -270,6 +296,7 @@ pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
         mode,
         trace,
         metrics,
+        first_fault,
     }
 }
 

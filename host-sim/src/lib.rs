@@ -22,6 +22,8 @@ pub use characterisation::{
 };
 pub use rig::{Rig, Sample, TrueState};
 pub mod bench;
+pub mod effect_rigs;
+pub mod end_to_end;
 pub mod faults;
 pub mod hal_mocks;
 pub mod harness;

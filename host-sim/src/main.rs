@@ -4,10 +4,13 @@
 //! plots.
 //!
 //! ```text
-//! cargo run --release -p host-sim [-- --out DIR] [--seed N] [--kp MPA] [--ki MPA_PER_S]
+//! cargo run --release -p host-sim [-- --out DIR] [--seed N] [--kp MPA] [--ki MPA_PER_S] [--no-end-to-end]
 //! ```
 //! `--kp` and `--ki` override the controller's PI gains in every arm (for a
 //! gain sweep; the defaults are `ControllerConfig::DEFAULT`'s).
+//! `--no-end-to-end` leaves out the last part (each effect rig
+//! characterised, fitted, diagnosed and tracked with the firmware booted
+//! from the blobs: about 30 s of the run's 35 s).
 //! Default output folder: `target/host-sim-report/`.
 
 use host_sim::bench::{run, BenchConfig, Mode, Run};
@@ -29,6 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut seed = 1u64;
     let mut kp_mpa: Option<f32> = None;
     let mut ki_mpa_per_s: Option<f32> = None;
+    let mut end_to_end = true;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -38,8 +42,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--ki" => {
                 ki_mpa_per_s = Some(args.next().ok_or("--ki needs a gain in MPa/s")?.parse()?)
             }
+            "--no-end-to-end" => end_to_end = false,
             "-h" | "--help" => {
-                println!("usage: host-sim [--out DIR] [--seed N] [--kp MPA] [--ki MPA_PER_S]");
+                println!("usage: host-sim [--out DIR] [--seed N] [--kp MPA] [--ki MPA_PER_S] [--no-end-to-end]");
                 return Ok(());
             }
             other => return Err(format!("unknown argument {other:?} (try --help)").into()),
@@ -58,7 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map_err(|e| format!("controller gains refused: {e:?}"))?;
 
     println!("host-sim: firmware controller on the simulated McKibben rig (seed {seed})");
-    println!("[1/5] characterisation run (isotonic, 100-600 N) ...");
+    println!("[1/6] characterisation run (isotonic, 100-600 N) ...");
     let samples = host_sim::characterisation_run(seed);
     host_sim::write_samples_csv(&out.join("characterisation.csv"), &samples)?;
     report::plot_characterisation(&out.join("characterisation_loops.svg"), &samples)?;
@@ -67,7 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut results: Vec<(Scenario, Run, Run, Run)> = Vec::new();
     let list = scenarios(seed);
     for (i, sc) in list.into_iter().enumerate() {
-        println!("[{}/5] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
+        println!("[{}/6] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
         let pi = run(&sc, Mode::PiOnly, &cfg);
         let ff = run(&sc, Mode::FeedforwardPi, &cfg);
         let mem = run(&sc, Mode::FeedforwardMemoryPi, &cfg);
@@ -76,6 +81,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 Mode::PiOnly => "pi",
                 Mode::FeedforwardPi => "ff_pi",
                 Mode::FeedforwardMemoryPi => "ff_mem_pi",
+                Mode::DiagnosedFeedforwardPi => "ff_diag_pi",
             };
             let name = format!("{}_{suffix}.csv", sc.name);
             // 100 Hz in the CSV (every 10th control period) keeps the files small.
@@ -185,7 +191,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     println!();
-    println!("[5/5] fault injection (host_sim::faults, the runs tests/faults.rs asserts on) ...");
+    println!("[5/6] fault injection (host_sim::faults, the runs tests/faults.rs asserts on) ...");
     let runs: Vec<_> = host_sim::faults::CASES
         .iter()
         .map(|&c| host_sim::faults::run_case(c, seed))
@@ -206,6 +212,55 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         fw.safety.implausible_contraction,
         survey.periods_beyond_bound
     );
+    println!();
+    if end_to_end {
+        println!(
+            "[6/6] end to end: characterise each effect rig, pam-lab fit and diagnose, boot the firmware from each blob, track ..."
+        );
+        let rigs = host_sim::effect_rigs::effect_rigs();
+        let scenario_list = scenarios(seed);
+        let started = std::time::Instant::now();
+        let outcomes = host_sim::end_to_end::run_all(&rigs, &scenario_list, &cfg);
+        println!(
+            "      {} rigs in {:.0} s",
+            outcomes.len(),
+            started.elapsed().as_secs_f64()
+        );
+        println!();
+        let e2e = host_sim::end_to_end::table(&outcomes);
+        print!("{e2e}");
+        std::fs::write(out.join("end_to_end.md"), &e2e)?;
+        report::plot_end_to_end(&out.join("end_to_end.svg"), &outcomes)?;
+        for o in &outcomes {
+            for r in &o.runs {
+                let mut series = vec![
+                    report::Series {
+                        label: "PI only",
+                        run: &r.pi,
+                        colour: report::RUN_COLOURS[0],
+                    },
+                    report::Series {
+                        label: "paper FF + PI",
+                        run: &r.paper,
+                        colour: report::RUN_COLOURS[1],
+                    },
+                ];
+                if let Ok(d) = &r.diagnosed {
+                    series.push(report::Series {
+                        label: "diagnosed FF + PI",
+                        run: d,
+                        colour: report::RUN_COLOURS[2],
+                    });
+                }
+                report::plot_scenario(
+                    &out.join(format!("end_to_end_{}_{}.svg", o.rig.name, r.scenario)),
+                    &format!("{} rig ({}): {}", o.rig.name, o.rig.effect, r.scenario),
+                    &series,
+                    cfg.warmup_s,
+                )?;
+            }
+        }
+    }
     println!();
     println!("Errors are reference minus true contraction (fraction of rest length) after a {:.0} s warm-up.", cfg.warmup_s);
     println!("Output written to {}/", out.display());

@@ -72,6 +72,14 @@ pub struct MuscleParams {
     pub slip_weight: [f64; SLIP_ELEMENTS],
     /// Viscous damping `c`, N per unit contraction per second.
     pub damping_n_s: f64,
+    /// `K_c`: stiffness of the rubber's slow (Maxwell) arm, N per unit
+    /// contraction; 0 for none. The arm resists a change of contraction at
+    /// first and relaxes with [`MuscleParams::creep_time_s`], so after a
+    /// pressure step the muscle moves part of the way at once and creeps the
+    /// rest (a standard linear solid for the bladder rubber).
+    pub creep_stiffness_n: f64,
+    /// `τ_c`: relaxation time of the slow arm, s (> 0).
+    pub creep_time_s: f64,
     /// Moving mass besides the hung load (muscle end, guide, load cell), kg.
     pub moving_mass_kg: f64,
     /// Dead volume of the muscle's fittings and tube, m³.
@@ -104,6 +112,8 @@ impl MuscleParams {
         slip_contraction: [0.0015, 0.0025, 0.004, 0.006, 0.009, 0.013, 0.018, 0.025],
         slip_weight: [0.125; SLIP_ELEMENTS],
         damping_n_s: 300.0,
+        creep_stiffness_n: 0.0,
+        creep_time_s: 2.0,
         moving_mass_kg: 3.0,
         dead_volume_m3: 20e-6,
     };
@@ -219,6 +229,8 @@ pub struct Muscle {
     contraction: f64,
     velocity_per_s: f64,
     slip: [f64; SLIP_ELEMENTS],
+    /// Rest position of the rubber's slow arm (its dashpot), contraction.
+    creep_rest: f64,
 }
 
 /// What the muscle does in one step, for traces.
@@ -233,11 +245,13 @@ pub struct MuscleForces {
 impl Muscle {
     /// A muscle at rest under `load_n` with zero pressure, friction relaxed.
     pub fn new(params: MuscleParams, load_n: f64) -> Muscle {
+        let contraction = params.static_contraction(0.0, load_n);
         Muscle {
             params,
-            contraction: params.static_contraction(0.0, load_n),
+            contraction,
             velocity_per_s: 0.0,
             slip: [0.0; SLIP_ELEMENTS],
+            creep_rest: contraction,
         }
     }
 
@@ -267,6 +281,7 @@ impl Muscle {
         self.contraction = contraction;
         self.velocity_per_s = 0.0;
         self.slip = [0.0; SLIP_ELEMENTS];
+        self.creep_rest = contraction;
     }
 
     /// Advance by `dt_s` at gauge `pressure_mpa` under `load_n` (semi-implicit
@@ -282,8 +297,11 @@ impl Muscle {
             .map(|(z, w)| z * w)
             .sum::<f64>()
             * sat_n;
+        // The slow arm pulls back towards where it has relaxed to.
+        let creep_n = p.creep_stiffness_n * (self.contraction - self.creep_rest);
         let net_n = active_n + p.bladder_tension_n(self.contraction)
             - friction_n
+            - creep_n
             - p.damping_n_s * self.velocity_per_s
             - load_n;
         // A hung load: its mass moves with the muscle end.
@@ -296,6 +314,11 @@ impl Muscle {
         // saturates, then slips.
         for (z, delta) in self.slip.iter_mut().zip(p.slip_contraction.iter()) {
             *z = (*z + d / delta).clamp(-1.0, 1.0);
+        }
+        // The slow arm's dashpot: τ_c·q̇ = x − q (exact for a step of x).
+        if p.creep_stiffness_n > 0.0 && p.creep_time_s > 0.0 {
+            let a = 1.0 - (-dt_s / p.creep_time_s).exp();
+            self.creep_rest += a * (self.contraction - self.creep_rest);
         }
         MuscleForces {
             active_n,
@@ -367,6 +390,41 @@ mod tests {
             (m.contraction() - up).abs() < 0.004,
             "{} vs {up}",
             m.contraction()
+        );
+    }
+
+    #[test]
+    fn creep_arm_makes_a_pressure_step_settle_slowly() {
+        // After a step 0.1 -> 0.3 MPa under 200 N the reference muscle is
+        // settled within 0.5 s; with a slow arm a quarter of the move or
+        // more is still to come at 0.5 s, and it arrives within ~5 τ_c.
+        let dt = 2.5e-4;
+        let response = |params: MuscleParams, secs: f64| {
+            let mut m = Muscle::new(params, 200.0);
+            for _ in 0..(4.0 / dt) as usize {
+                m.step(0.1, 200.0, dt);
+            }
+            let before = m.contraction();
+            for _ in 0..(secs / dt) as usize {
+                m.step(0.3, 200.0, dt);
+            }
+            m.contraction() - before
+        };
+        let creepy = MuscleParams {
+            creep_stiffness_n: 4000.0,
+            creep_time_s: 1.5,
+            ..P
+        };
+        let (plain_half, plain_end) = (response(P, 0.5), response(P, 10.0));
+        assert!((plain_half - plain_end).abs() < 0.05 * plain_end);
+        let (creep_half, creep_end) = (response(creepy, 0.5), response(creepy, 10.0));
+        assert!(
+            creep_end - creep_half > 0.25 * creep_end,
+            "{creep_half} {creep_end}"
+        );
+        assert!(
+            (creep_end - plain_end).abs() < 0.05 * plain_end,
+            "{creep_end} {plain_end}"
         );
     }
 

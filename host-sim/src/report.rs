@@ -395,6 +395,117 @@ fn ensure_font() {
     });
 }
 
+/// The end-to-end run as bars: one panel per scenario, one group per rig,
+/// the RMS tracking error of PI alone, the paper's model and the diagnosed
+/// model as feedforward. A run without a bar is named in its place: the
+/// firmware refused the blob, or the controller went to its safe state
+/// (then its RMS, in the table, is not a tracking error).
+pub fn plot_end_to_end(
+    path: &Path,
+    outcomes: &[crate::end_to_end::RigOutcome],
+) -> Result<(), ReportError> {
+    ensure_font();
+    let scenarios: Vec<&str> = outcomes
+        .iter()
+        .flat_map(|o| o.runs.iter().map(|r| r.scenario))
+        .fold(Vec::new(), |mut v, s| {
+            if !v.contains(&s) {
+                v.push(s);
+            }
+            v
+        });
+    if scenarios.is_empty() {
+        return Err("no end-to-end run to plot".into());
+    }
+    let root = SVGBackend::new(path, (1300, 330 * scenarios.len() as u32 + 60)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(
+        "End to end: RMS tracking error per rig (characterise -> fit / diagnose -> blob -> firmware)",
+        ("sans-serif", 22),
+    )?;
+    let rows = root.split_evenly((scenarios.len(), 1));
+    let labels = ["PI only", "paper FF + PI", "diagnosed FF + PI"];
+    for (row, scenario) in rows.iter().zip(&scenarios) {
+        let (chart_area, legend_area) = row.split_horizontally(1000);
+        // A run that ended in a safe state is not tracking: no bar, a note.
+        let tracked = |r: &Run| r.first_fault.is_none().then_some(r.metrics.rms_error);
+        let bars: Vec<(usize, [Result<f64, &str>; 3])> = outcomes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, o)| {
+                let r = o.runs.iter().find(|r| r.scenario == *scenario)?;
+                Some((
+                    i,
+                    [
+                        tracked(&r.pi).ok_or("safe state"),
+                        tracked(&r.paper).ok_or("safe state"),
+                        match &r.diagnosed {
+                            Ok(d) => tracked(d).ok_or("safe state"),
+                            Err(_) => Err("refused"),
+                        },
+                    ],
+                ))
+            })
+            .collect();
+        let ymax = bars
+            .iter()
+            .flat_map(|(_, b)| b.iter().filter_map(|v| v.ok()))
+            .fold(0.0f64, f64::max)
+            * 1.15;
+        let names: Vec<String> = outcomes
+            .iter()
+            .map(|o| format!("{} ({})", o.rig.name, o.rig.effect))
+            .collect();
+        let mut c = ChartBuilder::on(&chart_area)
+            .margin(8)
+            .caption(*scenario, ("sans-serif", 18))
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..outcomes.len() as f64, 0.0..ymax.max(1e-4))?;
+        c.configure_mesh()
+            .disable_x_mesh()
+            .x_labels(outcomes.len() * 2 + 1)
+            .x_label_formatter(&|x| {
+                let k = x - x.floor();
+                if (k - 0.5).abs() < 1e-6 {
+                    names.get(x.floor() as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc("RMS error (contraction)")
+            .draw()?;
+        for (i, b) in &bars {
+            for (j, v) in b.iter().enumerate() {
+                let x0 = *i as f64 + 0.12 + 0.25 * j as f64;
+                match v {
+                    Ok(v) => {
+                        c.draw_series(std::iter::once(Rectangle::new(
+                            [(x0, 0.0), (x0 + 0.24, *v)],
+                            RUN_COLOURS[j].filled(),
+                        )))?;
+                    }
+                    Err(why) => {
+                        c.draw_series(std::iter::once(Text::new(
+                            *why,
+                            (x0, 0.05 * ymax),
+                            ("sans-serif", 13).into_font().color(&RUN_COLOURS[j]),
+                        )))?;
+                    }
+                }
+            }
+        }
+        let entries: Vec<(String, ShapeStyle)> = labels
+            .iter()
+            .zip(RUN_COLOURS)
+            .map(|(l, c)| (l.to_string(), c.filled().stroke_width(10)))
+            .collect();
+        legend(&legend_area, &entries)?;
+    }
+    root.present()?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

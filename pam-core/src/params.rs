@@ -111,7 +111,7 @@ impl Params {
     /// cargo run --release -p pam-lab -- fit target/host-sim-report/characterisation.csv -o fit/
     /// ```
     ///
-    /// `pam-lab/tests/default_coeffs.rs` re-runs that fit and fails if any
+    /// `host-sim/tests/default_coeffs.rs` re-runs that fit and fails if any
     /// parameter here drifts from it. The cubic-plus-ellipse is not that
     /// plant's shape: held out, the fit's contraction error is 0.011 RMS
     /// (see pam-lab/README.md). Regenerate after any change to the rig or to

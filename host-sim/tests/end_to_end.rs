@@ -1,0 +1,66 @@
+//! The end-to-end path a user takes, on a rig the paper's model fits:
+//! characterise → `pam-lab fit` and `diagnose` → the blobs they write →
+//! the firmware's boot path → tracking on the same rig. The main job runs
+//! every effect rig and prints the table (host-sim/README.md).
+
+use host_sim::bench::BenchConfig;
+use host_sim::effect_rigs::effect_rigs;
+use host_sim::end_to_end::{boot, characterise, identify, run_rig};
+use host_sim::scenarios::Scenario;
+
+#[test]
+fn coulomb_rig_end_to_end_is_named_none_and_the_diagnosed_blob_tracks_no_worse() {
+    let rig = effect_rigs()
+        .into_iter()
+        .find(|r| r.name == "coulomb")
+        .unwrap();
+    let cfg = BenchConfig::default_with_seed(3);
+    let outcome = run_rig(&rig, &[Scenario::triangle(4, 4.0)], &cfg);
+    let id = outcome
+        .identified
+        .as_ref()
+        .expect("fit and diagnose accept the record");
+    assert_eq!(id.named(), "none", "diagnose added {:?}", id.effects_added);
+    let r = &outcome.runs[0];
+    let diagnosed = r
+        .diagnosed
+        .as_ref()
+        .expect("the firmware boots diagnose's blob");
+    for run in [&r.pi, &r.paper, diagnosed] {
+        assert!(
+            run.first_fault.is_none(),
+            "{:?}: {:?}",
+            run.mode,
+            run.first_fault
+        );
+    }
+    let (pi, paper, diag) = (
+        r.pi.metrics.rms_error,
+        r.paper.metrics.rms_error,
+        diagnosed.metrics.rms_error,
+    );
+    eprintln!(
+        "coulomb rig, triangle: PI {pi:.4}, paper FF+PI {paper:.4}, diagnosed FF+PI {diag:.4}"
+    );
+    assert!(
+        paper < 0.6 * pi,
+        "the fitted model's feedforward helps: {paper} vs PI {pi}"
+    );
+    assert!(
+        diag <= 1.1 * paper,
+        "no effect, no worse: {diag} vs {paper}"
+    );
+}
+
+#[test]
+fn a_corrupt_blob_from_the_pipeline_is_refused_at_boot_with_its_reason() {
+    let rig = effect_rigs()[0];
+    let record = characterise(&rig, 1);
+    assert_eq!(record.len(), 10_356);
+    let cfg = BenchConfig::default_with_seed(1);
+    let mut blob = identify(&record).expect("identified").diagnosed_blob;
+    let last = blob.len() - 1;
+    blob[last] ^= 1;
+    let err = boot(&blob, &cfg, 200.0).expect_err("a corrupt blob is refused");
+    assert!(err.contains("CRC"), "{err}");
+}
