@@ -42,8 +42,10 @@ fuzz_target!(|data: &[u8]| {
     let path = scratch();
     std::fs::write(path, data).expect("scratch file writable");
     match model_file::load(path) {
-        Ok(c) => {
+        Ok(m) => {
+            let c = m.coeffs;
             assert_eq!(Coeffs::new(*c.params()).as_ref(), Ok(&c));
+            assert_eq!(m.effects.validate(), Ok(()));
             check_coeffs(&c);
         }
         Err(e) => {

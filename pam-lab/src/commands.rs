@@ -21,7 +21,7 @@ use pam_core::{Coeffs, TrackerConfig};
 use crate::data::{self, num, num32, DataError, Purpose, Record};
 use crate::diagnose::{self, DiagnoseConfig, DiagnoseError, DiagnoseReport};
 use crate::fit::{self, FitConfig, FitError, FitReport, Progress};
-use crate::model_file::{self, FitSummary};
+use crate::model_file::{self, FitSummary, LoadedModel};
 use crate::output::OutputSet;
 use crate::simulate::{self, SimSample};
 
@@ -286,14 +286,15 @@ pub fn stage_diagnose(
 /// `pam-lab simulate`'s work: the simulation and the warnings about data
 /// outside the model's calibrated range.
 pub fn simulate_record(
-    coeffs: &Coeffs,
+    model: &LoadedModel,
     config: TrackerConfig,
     record: &Record,
 ) -> Result<(Vec<SimSample>, Vec<String>), pam_core::Error> {
     config.validate()?;
-    let warnings = range_warnings(coeffs, record);
+    model.effects.validate()?;
+    let warnings = range_warnings(&model.coeffs, record);
     Ok((
-        simulate::simulate(coeffs, config, &record.samples),
+        simulate::simulate(&model.coeffs, &model.effects, config, &record.samples),
         warnings,
     ))
 }
@@ -352,10 +353,33 @@ pub fn range_warnings(coeffs: &Coeffs, record: &Record) -> Vec<String> {
 }
 
 /// The line `simulate` prints.
-pub fn simulate_text(sim: &[SimSample], record: &Record, model: &Path) -> String {
+pub fn simulate_text(
+    sim: &[SimSample],
+    record: &Record,
+    model: &Path,
+    effects: &pam_core::Effects,
+) -> String {
     let sum = simulate::summary(sim);
+    let named: Vec<&str> = [
+        (effects.memory.is_some(), "non_local_memory"),
+        (effects.rate.is_some(), "rate_dependence"),
+        (effects.creep.is_some(), "creep"),
+        (effects.width.is_some(), "load_dependent_width"),
+        (effects.shape.is_some(), "constraint_shape"),
+    ]
+    .into_iter()
+    .filter_map(|(on, name)| on.then_some(name))
+    .collect();
+    let with = if named.is_empty() {
+        String::from("the paper's model")
+    } else {
+        format!(
+            "the paper's model + {} (the pressure error is the paper's part alone)",
+            named.join(" + ")
+        )
+    };
     format!(
-        "simulated {} samples of {} with {}: contraction error RMS {:.5}, max {:.5}; \
+        "simulated {} samples of {} with {} ({with}): contraction error RMS {:.5}, max {:.5}; \
          pressure error RMS {:.5} MPa, max {:.5} MPa\n",
         sim.len(),
         record.source,

@@ -396,11 +396,11 @@ fn run_simulate(
     }
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", model.display()));
-    let coeffs = pam_lab::model_file::load(model)?;
+    let loaded = pam_lab::model_file::load(model)?;
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Simulate)?;
     rep.stage("simulating");
-    let (sim, warnings) = commands::simulate_record(&coeffs, config, &record)
+    let (sim, warnings) = commands::simulate_record(&loaded, config, &record)
         .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
     for w in &warnings {
         warn(w);
@@ -416,7 +416,7 @@ fn run_simulate(
     }
     let written = set.commit()?;
     rep.done();
-    let summary = commands::simulate_text(&sim, &record, model) + &wrote(&written);
+    let summary = commands::simulate_text(&sim, &record, model, &loaded.effects) + &wrote(&written);
     if to_stdout {
         let mut w = std::io::BufWriter::new(std::io::stdout().lock());
         pam_lab::simulate::write_csv(&mut w, &sim)?;

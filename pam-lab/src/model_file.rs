@@ -91,14 +91,22 @@ impl ModelFile {
     }
 }
 
+/// A model read from a file: the paper's coefficients and the effects it
+/// carries beyond them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadedModel {
+    /// The paper's model.
+    pub coeffs: Coeffs,
+    /// Its effects ([`Effects::NONE`] for a version-1 file or blob).
+    pub effects: Effects,
+}
+
 /// Read a model: a JSON model file or a coefficient blob (told apart by the
-/// blob's magic), validated by `Coeffs::new`.
-pub fn load(path: &Path) -> Result<Coeffs> {
+/// blob's magic), validated by `Coeffs::new` and `Effects::validate`.
+pub fn load(path: &Path) -> Result<LoadedModel> {
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let params = if bytes.starts_with(&blob::BLOB_MAGIC) {
-        blob::decode_model_params(&bytes)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
-            .0
+    let (params, effects) = if bytes.starts_with(&blob::BLOB_MAGIC) {
+        blob::decode_model_params(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
     } else {
         let m: ModelFile = serde_json::from_slice(&bytes).map_err(|e| {
             anyhow::anyhow!(
@@ -116,9 +124,14 @@ pub fn load(path: &Path) -> Result<Coeffs> {
                 m.version
             );
         }
-        m.params
+        (m.params, m.effects)
     };
-    Coeffs::new(params).map_err(|e| anyhow::anyhow!("{}: invalid model: {e}", path.display()))
+    let coeffs = Coeffs::new(params)
+        .map_err(|e| anyhow::anyhow!("{}: invalid model: {e}", path.display()))?;
+    effects
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{}: invalid effects: {e}", path.display()))?;
+    Ok(LoadedModel { coeffs, effects })
 }
 
 /// A Rust source file defining `PARAMS: pam_core::Params` (for building the
@@ -292,12 +305,12 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let json = dir.path().join("m.json");
         std::fs::write(&json, ModelFile::new(Params::DEFAULT, None).to_json()).unwrap();
-        assert_eq!(load(&json).unwrap().params(), &Params::DEFAULT);
+        assert_eq!(load(&json).unwrap().coeffs.params(), &Params::DEFAULT);
         let text = std::fs::read_to_string(&json).unwrap();
         assert!(text.contains("\"max_pressure_mpa\": 0.50096667,"), "{text}");
         let b = dir.path().join("m.blob");
         std::fs::write(&b, blob::encode(&Params::DEFAULT)).unwrap();
-        assert_eq!(load(&b).unwrap().params(), &Params::DEFAULT);
+        assert_eq!(load(&b).unwrap().coeffs.params(), &Params::DEFAULT);
     }
 
     #[test]
@@ -365,7 +378,10 @@ mod tests {
             (VERSION_EFFECTS, e, Params::DEFAULT)
         );
         assert_eq!(
-            load(&dir.path().join("model.json")).unwrap().params(),
+            load(&dir.path().join("model.json"))
+                .unwrap()
+                .coeffs
+                .params(),
             &Params::DEFAULT
         );
         // Blob: version 2 with the memory, as the firmware decodes it.
@@ -373,9 +389,10 @@ mod tests {
         assert_eq!(bytes.len(), blob::BLOB_V2_LEN);
         let (c, back) = blob::decode_model(&bytes).unwrap();
         assert_eq!((c.params(), back), (&Params::DEFAULT, e));
+        let loaded = load(&dir.path().join("model.blob")).unwrap();
         assert_eq!(
-            load(&dir.path().join("model.blob")).unwrap().params(),
-            &Params::DEFAULT
+            (loaded.coeffs.params(), loaded.effects),
+            (&Params::DEFAULT, e)
         );
         // Constants.
         let src = std::fs::read_to_string(dir.path().join("model_params.rs")).unwrap();

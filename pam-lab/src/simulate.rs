@@ -1,15 +1,19 @@
 //! Driving the model with measured pressure and load, as the firmware would.
 //!
-//! pam-core's [`Tracker`] follows the measured pressure (the drive signal) and
-//! the measured load; the predicted contraction is the active load model's
-//! inverse on the tracker's branch at the measured pressure. A reversal inside
-//! the loop jumps to the other branch, as the paper's model does.
+//! pam-core's [`Simulator`] runs the model a file holds, its effects
+//! included: its tracker follows the measured pressure (the drive signal)
+//! and the measured load, and the predicted contraction is the active load
+//! model's inverse on the tracker's branch at the measured pressure, with
+//! the effects applied (minor loops, rate, creep, width, static shape).
+//! Without effects it is exactly the paper's model: a reversal inside the
+//! loop jumps to the other branch.
 //!
 //! The pressure error is the feedforward's quantity (and the natural one of
-//! an isometric test): the forward model at the measured contraction on the
-//! tracker's branch and active load, minus the measured pressure.
+//! an isometric test): the paper's forward model (eqs. 25–26) at the
+//! measured contraction on the tracker's branch and active load, minus the
+//! measured pressure. It does not include the effects.
 
-use pam_core::{Branch, Coeffs, Tracker, TrackerConfig};
+use pam_core::{Branch, Coeffs, Effects, Simulator, TrackerConfig};
 
 use crate::data::Sample;
 
@@ -59,20 +63,32 @@ pub struct Summary {
     pub pressure_max_mpa: f64,
 }
 
-/// Simulate `samples` with `coeffs`; the tracker starts on the contraction
-/// branch at the first sample's load.
-pub fn simulate(coeffs: &Coeffs, config: TrackerConfig, samples: &[Sample]) -> Vec<SimSample> {
+/// Reversal points the simulation remembers (the non-local memory's
+/// depth), as diagnose evaluates a model with.
+pub const MEMORY_DEPTH: usize = crate::diagnose::MEMORY_DEPTH;
+
+/// Simulate `samples` with `coeffs` and `effects`; the tracker starts on
+/// the contraction branch at the first sample's load. Effects that do not
+/// validate give no samples (a loaded model file has been validated).
+pub fn simulate(
+    coeffs: &Coeffs,
+    effects: &Effects,
+    config: TrackerConfig,
+    samples: &[Sample],
+) -> Vec<SimSample> {
     let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
-    let Ok(mut tracker) = Tracker::new(coeffs, config, first_load, Branch::Contraction) else {
+    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load) else {
         return Vec::new();
     };
+    // The effects' filters integrate time steps in f32: time from the
+    // record's start keeps them exact on records whose clock starts late.
+    let t0 = samples.first().map_or(0.0, |s| s.t_s);
     samples
         .iter()
         .map(|s| {
-            tracker.update(coeffs, s.pressure_mpa as f32, s.load_n as f32);
-            let model = tracker.model();
-            let x = model.contraction(s.pressure_mpa as f32, tracker.branch());
-            let p = model.pressure_mpa(s.contraction as f32, tracker.branch());
+            let x = sim.step((s.t_s - t0) as f32, s.pressure_mpa as f32, s.load_n as f32);
+            let model = sim.tracker().model();
+            let p = model.pressure_mpa(s.contraction as f32, sim.branch());
             SimSample {
                 t_s: s.t_s,
                 load_n: s.load_n,
@@ -80,8 +96,8 @@ pub fn simulate(coeffs: &Coeffs, config: TrackerConfig, samples: &[Sample]) -> V
                 measured_contraction: s.contraction,
                 predicted_contraction: f64::from(x),
                 predicted_pressure_mpa: f64::from(p),
-                branch: tracker.branch(),
-                active_load_n: f64::from(tracker.load_n()),
+                branch: sim.branch(),
+                active_load_n: f64::from(sim.tracker().load_n()),
             }
         })
         .collect()
@@ -147,7 +163,12 @@ mod tests {
         }
         let rec = generate(&Params::DEFAULT, &proto, 0.0, 0.0, 1);
         let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
-        let sim = simulate(&coeffs, TrackerConfig::DEFAULT_PRESSURE, &rec.samples);
+        let sim = simulate(
+            &coeffs,
+            &Effects::NONE,
+            TrackerConfig::DEFAULT_PRESSURE,
+            &rec.samples,
+        );
         assert_eq!(sim.len(), rec.len());
         let bad = sim.iter().filter(|s| s.error().abs() > 1e-4).count();
         // The forward model has no deadband issue away from the reversals.

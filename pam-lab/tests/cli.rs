@@ -310,3 +310,65 @@ fn diagnose_writes_its_report_plots_and_model_at_once() {
         serde_json::from_value(json["final_params"].clone()).unwrap();
     assert_eq!(coeffs.params(), &final_params);
 }
+
+/// `simulate` runs the effects a model file carries (a `diagnose` output),
+/// from JSON and from the blob alike, and says which it ran.
+#[test]
+fn simulate_runs_the_effects_of_the_model_file() {
+    use pam_core::effects::{Creep, Effects, NonLocalMemory};
+    use pam_lab::model_file::model_files;
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("rig.csv");
+    write_record(&data, &[100.0, 300.0]);
+    let effects = Effects {
+        memory: Some(NonLocalMemory::with_shape(2.0)),
+        creep: Some(Creep {
+            gain: 0.3,
+            time_constant_s: 2.0,
+        }),
+        ..Effects::NONE
+    };
+    let predicted = |name: &str, effects: &Effects| {
+        let model_dir = dir.path().join(name);
+        std::fs::create_dir_all(&model_dir).unwrap();
+        let files = model_files(&Params::DEFAULT, effects, None, "test").unwrap();
+        let mut columns = Vec::new();
+        for (file, bytes) in files.iter().filter(|(f, _)| *f != "model_params.rs") {
+            let path = model_dir.join(file);
+            std::fs::write(&path, bytes).unwrap();
+            let sim = model_dir.join(format!("{file}.csv"));
+            let (ok, stdout, stderr) = pam_lab(&[
+                "simulate",
+                path.to_str().unwrap(),
+                data.to_str().unwrap(),
+                "-o",
+                sim.to_str().unwrap(),
+            ]);
+            assert!(ok, "{stdout}\n{stderr}");
+            let ran_effects = stdout.contains("non_local_memory + creep");
+            assert_eq!(ran_effects, effects.memory.is_some(), "{stdout}");
+            let text = std::fs::read_to_string(&sim).unwrap();
+            let column: Vec<f64> = text
+                .lines()
+                .skip(1)
+                .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+                .collect();
+            columns.push(column);
+        }
+        assert_eq!(columns[0], columns[1], "JSON and blob run the same model");
+        columns.pop().unwrap()
+    };
+    let plain = predicted("plain", &Effects::NONE);
+    let with = predicted("effects", &effects);
+    assert_eq!(plain.len(), with.len());
+    let differ = plain
+        .iter()
+        .zip(&with)
+        .filter(|(a, b)| (*a - *b).abs() > 1e-3)
+        .count();
+    assert!(
+        differ > plain.len() / 10,
+        "the effects change the prediction: {differ} of {}",
+        plain.len()
+    );
+}

@@ -425,7 +425,12 @@ fn main() {
         }
     };
     let coeffs = Coeffs::new(params).expect("pam-lab returns valid parameters");
-    let sim = pam_lab::simulate::simulate(&coeffs, TrackerConfig::DEFAULT_PRESSURE, &samples);
+    let sim = pam_lab::simulate::simulate(
+        &coeffs,
+        &pam_core::Effects::NONE,
+        TrackerConfig::DEFAULT_PRESSURE,
+        &samples,
+    );
     let mut paper = Errors::default();
     for (s, &h) in sim.iter().zip(&heldout) {
         paper.add(h, s.error());
