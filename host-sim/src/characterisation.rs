@@ -260,6 +260,23 @@ fn retime_from_zero(out: &mut [Sample]) {
     }
 }
 
+/// `samples` as the record pam-lab reads from a CSV file (`source` names it
+/// in messages): what `fit` and `diagnose` would see of the rig's log.
+pub fn to_record(source: impl Into<String>, samples: &[Sample]) -> pam_lab::data::Record {
+    pam_lab::data::Record::from_samples(
+        source,
+        samples
+            .iter()
+            .map(|s| pam_lab::data::Sample {
+                t_s: s.t_s,
+                load_n: s.load_n,
+                pressure_mpa: s.pressure_mpa,
+                contraction: s.contraction,
+            })
+            .collect(),
+    )
+}
+
 /// Write samples as the project's CSV, `t_s,load_n,pressure_mpa,contraction`,
 /// with the precision of the example records.
 pub fn write_samples_csv(path: &Path, samples: &[Sample]) -> std::io::Result<()> {

@@ -18,14 +18,14 @@
 //! skipped silently.
 
 use crate::bench::{controller_config, run_controller, BenchConfig, Mode, Run};
-use crate::characterisation::{isotonic_run_on, IsotonicProtocol};
+use crate::characterisation::{isotonic_run_on, to_record, IsotonicProtocol};
 use crate::effect_rigs::EffectRig;
 use crate::pneumatics::PneumaticParams;
 use crate::rig::Rig;
 use crate::scenarios::Scenario;
 use firmware::controller::{model_from_blob, Controller};
 use pam_lab::commands::{diagnose_record, fit_record};
-use pam_lab::data::{Record, Sample};
+use pam_lab::data::Record;
 use pam_lab::diagnose::DiagnoseConfig;
 use pam_lab::fit::FitConfig;
 
@@ -93,16 +93,8 @@ pub fn characterise(rig: &EffectRig, seed: u64) -> Record {
         IsotonicProtocol::WITH_FAST_CYCLE.loads_n[0],
         seed,
     );
-    let samples = isotonic_run_on(sim, &IsotonicProtocol::WITH_FAST_CYCLE)
-        .into_iter()
-        .map(|s| Sample {
-            t_s: s.t_s,
-            load_n: s.load_n,
-            pressure_mpa: s.pressure_mpa,
-            contraction: s.contraction,
-        })
-        .collect();
-    Record::from_samples(format!("{} rig (seed {seed})", rig.name), samples)
+    let samples = isotonic_run_on(sim, &IsotonicProtocol::WITH_FAST_CYCLE);
+    to_record(format!("{} rig (seed {seed})", rig.name), &samples)
 }
 
 /// `fit` and `diagnose` on `record` with their default settings, as the

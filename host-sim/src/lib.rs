@@ -18,7 +18,8 @@ pub mod rig;
 pub mod sensors;
 
 pub use characterisation::{
-    characterisation_run, isometric_run, isometric_run_on, write_samples_csv, IsometricProtocol,
+    characterisation_run, isometric_run, isometric_run_on, to_record, write_samples_csv,
+    IsometricProtocol,
 };
 pub use rig::{Rig, Sample, TrueState};
 pub mod bench;

@@ -437,10 +437,10 @@ pub fn plot_end_to_end(
                 Some((
                     i,
                     [
-                        tracked(&r.pi).ok_or("safe state"),
-                        tracked(&r.paper).ok_or("safe state"),
+                        tracked(&r.pi).ok_or("tripped"),
+                        tracked(&r.paper).ok_or("tripped"),
                         match &r.diagnosed {
-                            Ok(d) => tracked(d).ok_or("safe state"),
+                            Ok(d) => tracked(d).ok_or("tripped"),
                             Err(_) => Err("refused"),
                         },
                     ],

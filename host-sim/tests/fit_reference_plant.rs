@@ -1,19 +1,13 @@
 //! Fits on data from host-sim's independent plant (not pam-core's equations).
 
-use pam_lab::data::{Record, Sample};
+use pam_lab::data::Record;
 use pam_lab::fit::{fit, FitConfig};
 
 fn characterisation(seed: u64) -> Record {
-    let samples = host_sim::characterisation_run(seed)
-        .into_iter()
-        .map(|s| Sample {
-            t_s: s.t_s,
-            load_n: s.load_n,
-            pressure_mpa: s.pressure_mpa,
-            contraction: s.contraction,
-        })
-        .collect();
-    Record::from_samples(format!("host-sim characterisation_run({seed})"), samples)
+    host_sim::to_record(
+        format!("host-sim characterisation_run({seed})"),
+        &host_sim::characterisation_run(seed),
+    )
 }
 
 /// The stated accuracy on the independent plant, held-out every 4th cycle:

@@ -4,25 +4,15 @@
 //! contraction errors reported and bounded.
 //!
 //! ```sh
-//! cargo test --release -p pam-lab --test fit_rigs -- --nocapture
+//! cargo test --release -p host-sim --test fit_rigs -- --nocapture
 //! ```
 
 use pam_core::Coeffs;
-use pam_lab::data::{Record, Sample};
+use pam_lab::data::Record;
 use pam_lab::fit::{fit, FitConfig, TestKind};
 
 fn record(name: &str, run: Vec<host_sim::rig::Sample>) -> Record {
-    Record::from_samples(
-        name,
-        run.into_iter()
-            .map(|s| Sample {
-                t_s: s.t_s,
-                load_n: s.load_n,
-                pressure_mpa: s.pressure_mpa,
-                contraction: s.contraction,
-            })
-            .collect(),
-    )
+    host_sim::to_record(name, &run)
 }
 
 #[test]
