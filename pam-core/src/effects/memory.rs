@@ -64,8 +64,10 @@ pub const MEMORY_INVERSE_STEPS: usize = 24;
 
 /// The pressure on `branch` at branch contraction `x` with the ellipse
 /// offset scaled by `offset_scale` (eqs. 25/26; 1: the paper's model), in
-/// `[0, Pmax]`: the forward counterpart of [`branch_contraction`].
-fn branch_pressure_mpa(model: &LoadModel, x: f32, branch: Branch, offset_scale: f32) -> f32 {
+/// `[0, Pmax]`: the forward counterpart of [`branch_contraction`] (the
+/// model's closed-form direction: constraint pressure plus the scaled
+/// offset).
+pub fn branch_pressure_mpa(model: &LoadModel, x: f32, branch: Branch, offset_scale: f32) -> f32 {
     if offset_scale == 1.0 {
         return model.pressure_mpa(x, branch);
     }
