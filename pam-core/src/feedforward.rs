@@ -23,7 +23,8 @@
 //!    effect the inverse is approximate (see `tests/feedforward.rs` for the
 //!    measured round trip);
 //! 4. memory: the pressure on the minor loop
-//!    ([`ReversalStack::inverse_pressure_mpa`]) or, without memory or with no
+//!    ([`ReversalStack::feedforward_pressure_mpa`]: its ends follow a
+//!    changing offset scale by Newton steps) or, without memory or with no
 //!    reversal remembered, on the branch: constraint pressure plus the
 //!    scaled offset ([`branch_pressure_mpa`], eqs. 25/26), the model's
 //!    closed-form direction;
@@ -33,8 +34,8 @@
 //! inverse is a few operations, the shape inverse
 //! [`SHAPE_INVERSE_STEPS`](crate::effects::shape::SHAPE_INVERSE_STEPS)
 //! bisection steps, the memory's inverse as documented there (two branch
-//! inverses when its minor loop is not cached: every period while the rate
-//! effect changes the offset scale).
+//! inverses when a minor loop starts or closes, two Newton steps when only
+//! the rate effect's offset scale changed).
 //!
 //! ```
 //! use pam_core::effects::{Creep, Effects};
@@ -107,6 +108,9 @@ pub struct InverseState<const N: usize> {
     memory: MemoryState<N>,
     rate: RateState,
     creep: CreepState,
+    /// The offset scale of the last call, minus 1 (so that the default
+    /// state's 0 is the paper's scale).
+    scale_minus_one: f32,
 }
 
 impl ModelInverse {
@@ -165,7 +169,12 @@ impl ModelInverse {
             Some(s) => shape_inverse(s, params, model, load_n, x_static),
             None => x_static,
         };
-        let scale = offset_scale(&self.effects, params, load_n, &state.rate);
+        let scale = if self.effects.width.is_some() || self.effects.rate.is_some() {
+            offset_scale(&self.effects, params, load_n, &state.rate)
+        } else {
+            1.0
+        };
+        state.scale_minus_one = scale - 1.0;
         let p_mpa = match &self.effects.memory {
             Some(m) => {
                 state
@@ -228,6 +237,12 @@ impl<const N: usize> InverseState<N> {
         *self = InverseState::default();
     }
 
+    /// The factor on the ellipse offset (width and rate) the last call
+    /// used; 1 before the first.
+    pub fn offset_scale(&self) -> f32 {
+        1.0 + self.scale_minus_one
+    }
+
     /// Forget the reversal memory (its turning points belong to the old
     /// load's loop after a load switch).
     pub fn clear_memory(&mut self) {
@@ -265,9 +280,6 @@ struct MemoryState<const N: usize> {
     /// The last feedforward computed a minor loop's ends (two branch
     /// inverses) instead of using the cached loop.
     rebuilt_loop: bool,
-    /// Bits of the offset scale of the last call: the cached loop is keyed
-    /// on it, so a change (the rate effect's) recomputes the loop's ends.
-    scale_bits: u32,
 }
 
 impl<const N: usize> MemoryState<N> {
@@ -304,8 +316,6 @@ impl<const N: usize> MemoryState<N> {
         branch_switch: bool,
         offset_scale: f32,
     ) -> f32 {
-        let rescaled = offset_scale.to_bits() != self.scale_bits;
-        self.scale_bits = offset_scale.to_bits();
         self.rebuilt_loop = false;
         if branch_switch {
             if let Some(r) = self.extreme.take() {
@@ -323,8 +333,8 @@ impl<const N: usize> MemoryState<N> {
                     self.trial.push(e);
                     self.trial_valid = true;
                 }
-                self.rebuilt_loop = rescaled || !self.trial.has_cached_loop();
-                return self.trial.inverse_pressure_mpa(
+                self.rebuilt_loop = !self.trial.has_cached_loop();
+                return self.trial.feedforward_pressure_mpa(
                     params,
                     model,
                     x_model,
@@ -343,13 +353,12 @@ impl<const N: usize> MemoryState<N> {
             branch_pressure_mpa(model, x_model, branch, offset_scale)
         } else {
             self.stack
-                .inverse_pressure_mpa(params, model, x_model, branch, offset_scale)
+                .feedforward_pressure_mpa(params, model, x_model, branch, offset_scale)
         };
         self.stack.wipe_out(p_mpa, branch);
         // A loop's ends were computed unless the cached loop served (a
         // closed loop, popped here, was evaluated afresh).
-        self.rebuilt_loop =
-            before > 0 && (rescaled || !cached || self.stack.points().len() < before);
+        self.rebuilt_loop = before > 0 && (!cached || self.stack.points().len() < before);
         // At or beyond the sweep's extreme: the turning point of the next reversal.
         self.extreme = Some(Reversal {
             pressure_mpa: p_mpa,

@@ -700,7 +700,7 @@ fn fast_and_full_checks_agree_on_every_sample() {
                         contraction: x,
                         load_n: l,
                     };
-                    let mut fast = monitor::Monitor::new(&s, &coeffs, 1e-3);
+                    let mut fast = monitor::Monitor::new(&s, &coeffs, 1e-3, None);
                     let mut full = fast;
                     assert_eq!(
                         fast.check(&sample, sp),
