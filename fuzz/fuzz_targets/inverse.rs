@@ -67,8 +67,7 @@ fuzz_target!(|data: &[u8]| {
         let x = f.around(model.root_contraction(), model.max_contraction());
         let branch = f.branch();
         let switch = sel & 1 != 0;
-        let pressure_mpa =
-            inverse.pressure_mpa(&mut state, &p, &model, load_n, x, branch, switch);
+        let pressure_mpa = inverse.pressure_mpa(&mut state, &p, &model, load_n, x, branch, switch);
         assert!(
             pressure_mpa.is_finite() && (0.0..=model.max_pressure_mpa()).contains(&pressure_mpa),
             "pressure_mpa({x:e}, {branch:?}) = {pressure_mpa:e}"
