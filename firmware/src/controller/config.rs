@@ -169,13 +169,14 @@ pub enum Feedforward {
     /// With no reversal remembered it is exactly [`Feedforward::Hysteresis`].
     ///
     /// Work per step: pam-core's
-    /// [`ReversalStack::inverse_pressure_mpa`](pam_core::effects::ReversalStack::inverse_pressure_mpa):
+    /// [`ReversalStack::feedforward_pressure_mpa`](pam_core::effects::ReversalStack::feedforward_pressure_mpa)
+    /// (through [`ModelInverse`](pam_core::feedforward::ModelInverse)):
     /// the minor loop's closed-form solve (one square root) on the cached
     /// loop and one forward evaluation; when a loop starts, its two ends
     /// (branch inverses). Only where the closed form finds no candidate,
     /// [`MEMORY_INVERSE_STEPS`](super::MEMORY_INVERSE_STEPS) bisection steps
-    /// of the loop's blend (one division each). bench-m4: 169 instructions
-    /// on average, 291 at most, 527 when a loop starts.
+    /// of the loop's blend (one division each). bench-m4: 178 instructions
+    /// on average, 305 at most, 615 when a loop starts (`memory_inverse`).
     HysteresisMemory(NonLocalMemory),
     /// The hysteresis model with every effect of a diagnosed model
     /// (pam-core's [`Effects`]: memory, rate, creep, width, shape), inverted

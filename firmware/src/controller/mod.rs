@@ -46,10 +46,13 @@
 //! evaluation and two inverse evaluations (the plausibility band) and,
 //! after a load switch, at most [`TABLE_BUILD_UNITS_PER_STEP`] units of the
 //! new model's inverse-table build per step until it is complete (the new
-//! model's forward evaluation is active from the switch). No
-//! allocation, no loops over data, no panicking operation (no indexing by
-//! runtime values, no division by a runtime value other than in `f32`,
-//! which saturates to ±inf or NaN and is clamped).
+//! model's forward evaluation is active from the switch). A feedforward
+//! with effects adds pam-core's `ModelInverse` (bounded loops only: the
+//! shape's and the memory's bisections of fixed length, `N/2 + 1`
+//! wipe-out passes) and builds [`TABLE_BUILD_UNITS_PER_STEP_EFFECTS`] units
+//! per step instead. No allocation, no loops over data, no panicking
+//! operation (no indexing by runtime values, no division by a runtime value
+//! other than in `f32`, which saturates to ±inf or NaN and is clamped).
 
 pub mod config;
 pub mod io;
