@@ -33,9 +33,37 @@ fn main() -> Result<(), Box<dyn Error>> {
             };
             pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects).to_vec()
         }
+        None if env::var_os("CARGO_FEATURE_QEMU_EFFECTS_BLOB").is_some() => {
+            // A version-2 blob with every effect a blob can carry (the
+            // self-test's: see firmware::scenario::EFFECTS_BLOB_EFFECTS).
+            use pam_core::effects::*;
+            let effects = pam_core::Effects {
+                memory: Some(NonLocalMemory {
+                    shape: 1.0,
+                    merge_span: 0.02,
+                }),
+                rate: Some(RateDependence::linear(1.0, 0.5)),
+                creep: Some(Creep {
+                    gain: 0.05,
+                    time_constant_s: 0.5,
+                }),
+                width: Some(LoadDependentWidth {
+                    scale_at_min_load: 1.0,
+                    scale_per_step: 0.05,
+                }),
+                shape: Some(ConstraintShape {
+                    bulge: 0.05,
+                    tilt: 0.0,
+                    bulge_per_step: 0.0,
+                    tilt_per_step: 0.0,
+                }),
+            };
+            pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects).to_vec()
+        }
         None => pam_core::blob::encode(&pam_core::Params::DEFAULT).to_vec(),
     };
     println!("cargo:rerun-if-env-changed=CARGO_FEATURE_QEMU_MEMORY_BLOB");
+    println!("cargo:rerun-if-env-changed=CARGO_FEATURE_QEMU_EFFECTS_BLOB");
     if env::var_os("CARGO_FEATURE_QEMU_BAD_BLOB").is_some() {
         // One bit of one parameter flipped: the CRC check must refuse it at boot.
         blob[20] ^= 0x01;

@@ -66,6 +66,35 @@ if ! grep -q "version 2, non-local memory" <<<"$out" || ! grep -q "PASS" <<<"$ou
   exit 1
 fi
 
+echo "== firmware: QEMU run-pass with a version-2 blob carrying every effect"
+out=$(timeout 300 cargo fw-qemu-effects-blob 2>&1)
+echo "$out" | grep -E "blob accepted|max \|error\||PASS|FAIL" || true
+if ! grep -q "version 2, non-local memory, rate dependence, creep, load-dependent width, constraint shape" <<<"$out" \
+  || ! grep -q "PASS" <<<"$out"; then
+  echo "firmware: the v2 blob with every effect did not boot and pass" >&2
+  exit 1
+fi
+
+# The issue's done-when: a `diagnose` run on a record with memory writes a
+# v2 blob the self-test boots with. examples/rate_dependence.csv is the
+# record whose diagnosis names the non-local memory (examples/README.md;
+# about 6 s in release). build.rs reads the blob from PAM_COEFFS_BLOB.
+echo "== firmware: pam-lab diagnose -> model.blob -> QEMU run-pass"
+diag_dir=$target_dir/ci-diagnose
+rm -rf "$diag_dir"
+cargo run --release -q -p pam-lab -- diagnose examples/rate_dependence.csv -o "$diag_dir" --no-plot --quiet
+if ! grep -q '"memory": {' "$diag_dir/model.json"; then
+  echo "firmware: diagnose did not add the non-local memory (model.json):" >&2
+  cat "$diag_dir/model.json" >&2
+  exit 1
+fi
+out=$(PAM_COEFFS_BLOB="$diag_dir/model.blob" timeout 300 cargo fw-qemu 2>&1)
+echo "$out" | grep -E "blob accepted|max \|error\||PASS|FAIL" || true
+if ! grep -q "version 2, non-local memory" <<<"$out" || ! grep -q "PASS" <<<"$out"; then
+  echo "firmware: the diagnosed blob did not boot and pass" >&2
+  exit 1
+fi
+
 echo "== firmware: QEMU, corrupt coefficient blob must be refused at boot"
 set +e
 out=$(timeout 300 cargo fw-qemu-bad-blob 2>&1)

@@ -15,6 +15,10 @@
 //!   put in between (`x_eq = clamp(x_eq, x_C(p), x_E(p))`, with `x_C`, `x_E`
 //!   the branch inverses of eqs. 25/26). Its outer loop is the model's loop.
 //! * Contraction: `dx/dt = (x_eq − x)/τ` (the mass–damper of the orthosis).
+//! * With effects ([`MusclePlant::with_effects`]) the equilibrium is
+//!   pam-core's [`Simulator`] instead of the play operator: the plant's
+//!   hysteresis model with memory, rate dependence, creep, load-dependent
+//!   width or a shape correction, driven by the chamber pressure.
 //!
 //! The plant is built from parameters that differ from the controller's (see
 //! [`crate::scenario`]), so the feedforward is not exact.
@@ -28,7 +32,7 @@ use crate::hal::{
     SensorErrorKind,
 };
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
-use pam_core::{Branch, LoadModel};
+use pam_core::{Branch, Coeffs, Effects, LoadModel, Simulator, TrackerConfig};
 
 /// Physical constants of the simulated muscle and valves.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,6 +81,15 @@ pub struct MusclePlant {
     pressure_mpa: f32,
     equilibrium: f32,
     contraction: f32,
+    /// The model with effects, when the plant has them.
+    effects: Option<EffectsPlant>,
+}
+
+/// The equilibrium of a plant with effects.
+#[derive(Clone, Debug)]
+struct EffectsPlant {
+    sim: Simulator<8>,
+    t_s: f32,
 }
 
 impl MusclePlant {
@@ -89,7 +102,23 @@ impl MusclePlant {
             pressure_mpa: 0.0,
             equilibrium: x0,
             contraction: x0,
+            effects: None,
         }
+    }
+
+    /// A muscle at rest whose equilibrium contraction is pam-core's
+    /// [`Simulator`] of `coeffs` with `effects` at `load_n` (its branch
+    /// switching driven by the chamber pressure).
+    pub fn with_effects(
+        coeffs: Coeffs,
+        effects: Effects,
+        load_n: f32,
+        config: PlantConfig,
+    ) -> Result<MusclePlant, pam_core::Error> {
+        let sim = Simulator::new(coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, load_n)?;
+        let mut plant = MusclePlant::new(coeffs.load_model(load_n)?, config);
+        plant.effects = Some(EffectsPlant { sim, t_s: 0.0 });
+        Ok(plant)
     }
 
     /// Chamber pressure, MPa gauge.
@@ -124,14 +153,24 @@ impl MusclePlant {
         let dp = c.fill_rate_per_s * self.opening(inlet_duty) * (c.supply_mpa - self.pressure_mpa)
             - c.vent_rate_per_s * self.opening(exhaust_duty) * self.pressure_mpa;
         self.pressure_mpa = clamp(self.pressure_mpa + dp * dt_s, 0.0, c.supply_mpa);
+        if let Some(e) = &mut self.effects {
+            e.t_s += dt_s;
+            self.equilibrium = e.sim.step(e.t_s, self.pressure_mpa, self.model.load_n());
+        } else {
+            self.play();
+        }
+        let k = clamp(dt_s / self.config.lag_s, 0.0, 1.0);
+        self.contraction += (self.equilibrium - self.contraction) * k;
+    }
+
+    /// The play operator between the branches.
+    fn play(&mut self) {
         let a = self
             .model
             .contraction(self.pressure_mpa, Branch::Contraction);
         let b = self.model.contraction(self.pressure_mpa, Branch::Expansion);
         let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
         self.equilibrium = clamp(self.equilibrium, lo, hi);
-        let k = clamp(dt_s / self.config.lag_s, 0.0, 1.0);
-        self.contraction += (self.equilibrium - self.contraction) * k;
     }
 }
 

@@ -123,23 +123,73 @@ pub const MEMORY_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
     shape: None,
 };
 
+/// The effects of the version-2 blob the `qemu-effects-blob` self-test
+/// boots (`firmware/build.rs` writes the same): every effect a blob can
+/// carry, each small (the self-test plant has none of them: the run checks
+/// that a controller inverting all of them boots, runs within its
+/// worst-case budget and still tracks within [`MAX_ERROR_BOUND`]).
+pub const EFFECTS_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
+    memory: Some(pam_core::effects::NonLocalMemory {
+        shape: 1.0,
+        merge_span: 0.02,
+    }),
+    rate: Some(pam_core::effects::RateDependence::linear(1.0, 0.5)),
+    creep: Some(pam_core::effects::Creep {
+        gain: 0.05,
+        time_constant_s: 0.5,
+    }),
+    width: Some(pam_core::effects::LoadDependentWidth {
+        scale_at_min_load: 1.0,
+        scale_per_step: 0.05,
+    }),
+    shape: Some(pam_core::effects::ConstraintShape {
+        bulge: 0.05,
+        tilt: 0.0,
+        bulge_per_step: 0.0,
+        tilt_per_step: 0.0,
+    }),
+};
+
 /// Run the scenario with the controller built from `blob` and the given
 /// feedforward; `on_event` sees every step that reports a new fault or a
 /// recovery (the firmware logs them).
 pub fn run(
     blob: &[u8],
     feedforward: Feedforward,
+    on_event: impl FnMut(u32, &Step),
+) -> Result<Report, ConfigError> {
+    let plant_coeffs = Coeffs::new(plant_params()).map_err(ConfigError::Coefficients)?;
+    let plant = MusclePlant::new(
+        plant_coeffs.load_model_clamped(LOAD_N),
+        PlantConfig::DEFAULT,
+    );
+    run_on(blob, feedforward, plant, on_event)
+}
+
+/// [`run`] on a plant with `effects` (the [`plant_params`] model with
+/// them, [`MusclePlant::with_effects`]).
+pub fn run_with_plant_effects(
+    blob: &[u8],
+    feedforward: Feedforward,
+    effects: pam_core::Effects,
+) -> Result<Report, ConfigError> {
+    let plant_coeffs = Coeffs::new(plant_params()).map_err(ConfigError::Coefficients)?;
+    let plant = MusclePlant::with_effects(plant_coeffs, effects, LOAD_N, PlantConfig::DEFAULT)
+        .map_err(ConfigError::Coefficients)?;
+    run_on(blob, feedforward, plant, |_, _| {})
+}
+
+/// [`run`] on a given plant.
+pub fn run_on(
+    blob: &[u8],
+    feedforward: Feedforward,
+    mut plant: MusclePlant,
     mut on_event: impl FnMut(u32, &Step),
 ) -> Result<Report, ConfigError> {
     let mut config = ControllerConfig::DEFAULT;
     config.feedforward = feedforward;
     let dt_s = config.dt_s;
     let mut ctl = Controller::from_blob(blob, config, LOAD_N)?;
-    let plant_coeffs = Coeffs::new(plant_params()).map_err(ConfigError::Coefficients)?;
-    let mut plant = MusclePlant::new(
-        plant_coeffs.load_model_clamped(LOAD_N),
-        PlantConfig::DEFAULT,
-    );
     let bus = SimBus::new();
     let calibration = PressureCalibration::ADC12_0_1MPA;
     let valve = ValvePair::new(
@@ -295,21 +345,103 @@ mod tests {
         // within a few hundredths of contraction) the short merge span
         // tracks at least as well as the paper's model.
         assert!(r.max_error <= plain.max_error, "{r:?} vs {plain:?}");
-        // An effect the controller cannot run is refused.
-        let rate = pam_core::Effects {
-            rate: Some(pam_core::effects::RateDependence {
-                scale_at_rest: 1.0,
-                scale_per_mpa_per_s: 0.5,
-                exponent: 1.0,
-                filter_time_s: 0.1,
-            }),
-            ..effects
+    }
+
+    #[test]
+    fn a_v2_blob_with_every_effect_runs_their_inverse_and_passes() {
+        let effects = EFFECTS_BLOB_EFFECTS;
+        let b = pam_core::blob::encode_v2(&Params::DEFAULT, &effects);
+        let (_, ff) = crate::controller::model_from_blob(&b, Feedforward::Hysteresis).unwrap();
+        assert_eq!(ff, Feedforward::HysteresisEffects(effects));
+        let r = run(&b, Feedforward::Hysteresis, |_, _| {}).unwrap();
+        let plain = run(&blob(), Feedforward::Hysteresis, |_, _| {}).unwrap();
+        println!("effects {r:?}\nplain {plain:?}");
+        assert!(r.passed(), "{r:?}");
+    }
+
+    /// One plant per effect (and all at once), each an effect a diagnosis
+    /// would find: the feedforward that inverts the blob's model with it
+    /// tracks that plant at least as well as the paper-only feedforward.
+    #[test]
+    fn each_effects_feedforward_tracks_its_plant_no_worse_than_the_paper_model() {
+        use pam_core::effects::{
+            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
         };
-        let b = pam_core::blob::encode_v2(&Params::DEFAULT, &rate);
-        assert_eq!(
-            run(&b, Feedforward::Hysteresis, |_, _| {}).err(),
-            Some(ConfigError::UnsupportedEffect("rate dependence"))
-        );
+        use pam_core::Effects;
+        let none = Effects::NONE;
+        let cases = [
+            (
+                "memory",
+                Effects {
+                    memory: Some(NonLocalMemory::with_shape(1.0)),
+                    ..none
+                },
+            ),
+            (
+                "rate",
+                Effects {
+                    rate: Some(RateDependence::linear(1.0, 2.0)),
+                    ..none
+                },
+            ),
+            (
+                "creep",
+                Effects {
+                    creep: Some(Creep {
+                        gain: 0.3,
+                        time_constant_s: 1.0,
+                    }),
+                    ..none
+                },
+            ),
+            (
+                "width",
+                Effects {
+                    width: Some(LoadDependentWidth {
+                        scale_at_min_load: 1.0,
+                        scale_per_step: 0.5,
+                    }),
+                    ..none
+                },
+            ),
+            (
+                "shape",
+                Effects {
+                    shape: Some(ConstraintShape {
+                        bulge: 0.3,
+                        tilt: 0.1,
+                        ..ConstraintShape::NEUTRAL
+                    }),
+                    ..none
+                },
+            ),
+        ];
+        let all = cases.iter().fold(none, |acc, (_, e)| Effects {
+            memory: acc.memory.or(e.memory),
+            rate: acc.rate.or(e.rate),
+            creep: acc.creep.or(e.creep),
+            width: acc.width.or(e.width),
+            shape: acc.shape.or(e.shape),
+        });
+        let paper = blob();
+        for (name, effects) in cases.iter().copied().chain([("all", all)]) {
+            let diagnosed = pam_core::blob::encode_v2(&Params::DEFAULT, &effects);
+            let with =
+                run_with_plant_effects(&diagnosed, Feedforward::Hysteresis, effects).unwrap();
+            let without = run_with_plant_effects(&paper, Feedforward::Hysteresis, effects).unwrap();
+            println!(
+                "{name}: rms {:.5} max {:.5} (paper-only rms {:.5} max {:.5})",
+                with.rms_error, with.max_error, without.rms_error, without.max_error
+            );
+            assert!(
+                with.rms_error <= without.rms_error,
+                "{name}: {with:?} vs paper-only {without:?}"
+            );
+            assert!(
+                with.fault_caught && with.other_faults == 0,
+                "{name}: {with:?}"
+            );
+        }
     }
 
     #[test]

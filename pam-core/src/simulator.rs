@@ -6,8 +6,7 @@ use crate::branch::Branch;
 use crate::coeffs::Coeffs;
 use crate::effects::memory::Blend;
 use crate::effects::{
-    branch_contraction, CreepState, Effects, RateState, Reversal, ReversalStack, MAX_OFFSET_SCALE,
-    MAX_STEP_S,
+    branch_contraction, CreepState, Effects, RateState, Reversal, ReversalStack, MAX_STEP_S,
 };
 use crate::error::Error;
 use crate::math::clamp;
@@ -88,14 +87,12 @@ impl<const N: usize> Simulator<N> {
 
     /// Factor on the ellipse offset from the width and rate effects now.
     pub fn offset_scale(&self) -> f32 {
-        let mut m = 1.0;
-        if let Some(w) = &self.effects.width {
-            m *= w.scale(self.coeffs.params(), self.tracker.load_n());
-        }
-        if let Some(r) = &self.effects.rate {
-            m *= r.scale(&self.rate);
-        }
-        clamp(m, 0.0, MAX_OFFSET_SCALE)
+        crate::feedforward::offset_scale(
+            &self.effects,
+            self.coeffs.params(),
+            self.tracker.load_n(),
+            &self.rate,
+        )
     }
 
     /// Feed one sample; returns the predicted contraction (fraction of rest

@@ -23,7 +23,10 @@ use cortex_m_semihosting::{debug, hprintln};
 use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, Step};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
 use firmware::plant::{SimBus, SimContraction, SimLoad, SimPressure, SimPwm};
-use pam_core::effects::{Effects, NonLocalMemory, ReversalStack};
+use pam_core::effects::{
+    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
+    ReversalStack,
+};
 use pam_core::Simulator;
 use pam_core::{Branch, Coeffs, LoadModel, Tracker, TrackerConfig};
 
@@ -520,7 +523,58 @@ fn main() -> ! {
 
     // The representative run with each feedforward (chosen at run time):
     // every step, the reversal steps, and the load-switch steps (the switch
-    // and the table build after it).
+    // and the table build after it). The effects feedforwards invert a model
+    // with one effect each, then all of them (what a blob from `diagnose`
+    // gives, `Feedforward::HysteresisEffects`); the rate law's exponent 0.7
+    // takes the `powf` path, the slowest the law has.
+    let memory_only = Effects {
+        memory: Some(NonLocalMemory::with_shape(MEMORY_SHAPE)),
+        ..Effects::NONE
+    };
+    let rate = Effects {
+        rate: Some(RateDependence {
+            exponent: 0.7,
+            ..RateDependence::linear(1.0, 2.0)
+        }),
+        ..Effects::NONE
+    };
+    let creep = Effects {
+        creep: Some(Creep {
+            gain: 0.3,
+            time_constant_s: 1.0,
+        }),
+        ..Effects::NONE
+    };
+    let width = Effects {
+        width: Some(LoadDependentWidth {
+            scale_at_min_load: 1.0,
+            scale_per_step: 0.2,
+        }),
+        ..Effects::NONE
+    };
+    let shape = Effects {
+        shape: Some(ConstraintShape {
+            bulge: 0.2,
+            tilt: 0.1,
+            bulge_per_step: 0.02,
+            tilt_per_step: 0.0,
+        }),
+        ..Effects::NONE
+    };
+    // What `diagnose` names on examples/rate_dependence.csv first and
+    // second: the memory, then the rate (linear law).
+    let memory_rate = Effects {
+        memory: memory_only.memory,
+        rate: Some(RateDependence::linear(1.0, 2.0)),
+        ..Effects::NONE
+    };
+    let all = Effects {
+        memory: memory_only.memory,
+        rate: rate.rate,
+        creep: creep.creep,
+        width: width.width,
+        shape: shape.shape,
+    };
     let feedforwards = [
         ("off", Feedforward::Off),
         ("constraint", Feedforward::Constraint),
@@ -529,6 +583,12 @@ fn main() -> ! {
             "memory",
             Feedforward::HysteresisMemory(NonLocalMemory::with_shape(MEMORY_SHAPE)),
         ),
+        ("rate", Feedforward::HysteresisEffects(rate)),
+        ("creep", Feedforward::HysteresisEffects(creep)),
+        ("width", Feedforward::HysteresisEffects(width)),
+        ("shape", Feedforward::HysteresisEffects(shape)),
+        ("memory_rate", Feedforward::HysteresisEffects(memory_rate)),
+        ("effects", Feedforward::HysteresisEffects(all)),
     ];
     for (name, ff) in feedforwards {
         let mut cfg = ControllerConfig::DEFAULT;

@@ -201,17 +201,26 @@ fn main() -> ! {
         let _ = valve.set_safe(SafeState::Exhaust);
         finish(false)
     }
-    let with_memory = matches!(ff, Feedforward::HysteresisMemory(_));
+    let effects = match ff {
+        Feedforward::HysteresisMemory(m) => pam_core::Effects {
+            memory: Some(m),
+            ..pam_core::Effects::NONE
+        },
+        Feedforward::HysteresisEffects(e) => e,
+        _ => pam_core::Effects::NONE,
+    };
+    let with_effects = effects != pam_core::Effects::NONE;
+    let named = |on: bool, name: &'static str| if on { name } else { "" };
     log!(
         info,
-        "boot: coefficient blob accepted ({} bytes, version {}{})",
+        "boot: coefficient blob accepted ({} bytes, version {}{}{}{}{}{})",
         blob.len(),
         blob.get(4).copied().unwrap_or(0),
-        if with_memory {
-            ", non-local memory"
-        } else {
-            ""
-        }
+        named(effects.memory.is_some(), ", non-local memory"),
+        named(effects.rate.is_some(), ", rate dependence"),
+        named(effects.creep.is_some(), ", creep"),
+        named(effects.width.is_some(), ", load-dependent width"),
+        named(effects.shape.is_some(), ", constraint shape")
     );
     #[cfg(feature = "qemu")]
     if cfg!(feature = "qemu-panic") {
@@ -233,8 +242,8 @@ fn main() -> ! {
         }
     };
     report(
-        if with_memory {
-            "hysteresis feedforward with the blob's non-local memory"
+        if with_effects {
+            "hysteresis feedforward inverting the blob's effects"
         } else {
             "hysteresis feedforward"
         },

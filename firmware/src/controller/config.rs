@@ -4,7 +4,7 @@
 //! never checks a setting again.
 
 use crate::hal::{HalConfigError, SafeState};
-use pam_core::effects::NonLocalMemory;
+use pam_core::effects::{Effects, NonLocalMemory, MAX_STEP_S};
 use pam_core::TrackerConfig;
 
 /// Limits of the safety monitor ([`super::monitor`]).
@@ -169,14 +169,24 @@ pub enum Feedforward {
     /// With no reversal remembered it is exactly [`Feedforward::Hysteresis`].
     ///
     /// Work per step: pam-core's
-    /// [`ReversalStack::inverse_pressure_mpa`](pam_core::effects::ReversalStack::inverse_pressure_mpa):
+    /// [`ReversalStack::feedforward_pressure_mpa`](pam_core::effects::ReversalStack::feedforward_pressure_mpa)
+    /// (through [`ModelInverse`](pam_core::feedforward::ModelInverse)):
     /// the minor loop's closed-form solve (one square root) on the cached
     /// loop and one forward evaluation; when a loop starts, its two ends
     /// (branch inverses). Only where the closed form finds no candidate,
     /// [`MEMORY_INVERSE_STEPS`](super::MEMORY_INVERSE_STEPS) bisection steps
-    /// of the loop's blend (one division each). bench-m4: 169 instructions
-    /// on average, 291 at most, 527 when a loop starts.
+    /// of the loop's blend (one division each). bench-m4: 178 instructions
+    /// on average, 305 at most, 615 when a loop starts (`memory_inverse`).
     HysteresisMemory(NonLocalMemory),
+    /// The hysteresis model with every effect of a diagnosed model
+    /// (pam-core's [`Effects`]: memory, rate, creep, width, shape), inverted
+    /// by pam-core's [`ModelInverse`](pam_core::feedforward::ModelInverse):
+    /// the creep lag in closed form, the shape correction, the offset scaled
+    /// by width and rate, the memory's minor loop or the branch. With
+    /// [`Effects::NONE`] it is [`Feedforward::Hysteresis`]; with the memory
+    /// alone, [`Feedforward::HysteresisMemory`]. What a blob with effects
+    /// gives ([`model_from_blob`](super::model_from_blob)).
+    HysteresisEffects(Effects),
 }
 
 /// Gains, rate and limits of the controller.
@@ -265,6 +275,13 @@ impl ControllerConfig {
             Feedforward::HysteresisMemory(m) => m.validate().is_ok(),
             _ => true,
         };
+        // The inverse integrates the rate filter and the creep lag over one
+        // period, which pam-core accepts up to `MAX_STEP_S`.
+        let effects_ok = match &self.feedforward {
+            Feedforward::HysteresisEffects(e) => e.validate().is_ok() && self.dt_s <= MAX_STEP_S,
+            Feedforward::HysteresisMemory(_) => self.dt_s <= MAX_STEP_S,
+            _ => true,
+        };
         // One row per setting: (holds, setting). The first that fails is named.
         let rules = [
             (positive(self.dt_s), Setting::DtS),
@@ -306,6 +323,7 @@ impl ControllerConfig {
                 Setting::ImplausibleSettleS,
             ),
             (memory_ok, Setting::MemoryShape),
+            (effects_ok, Setting::FeedforwardEffects),
             (s.recovery_samples >= 1, Setting::RecoverySamples),
             (s.latch_window_periods >= 1, Setting::LatchWindowPeriods),
         ];
@@ -359,6 +377,10 @@ pub enum Setting {
     ImplausibleSettleS,
     /// The non-local memory's shape: finite and in [0.05, 50].
     MemoryShape,
+    /// The effects of [`Feedforward::HysteresisEffects`]: each valid
+    /// (pam-core's `Effects::validate`), and `dt_s` at most
+    /// `pam_core::effects::MAX_STEP_S` for a feedforward with effects.
+    FeedforwardEffects,
     /// `recovery_samples`: ≥ 1.
     RecoverySamples,
     /// `latch_window_periods`: ≥ 1.
@@ -386,7 +408,7 @@ impl Setting {
             Setting::ImplausibleContraction => "implausible_contraction",
             Setting::ImplausibleLagS => "implausible_lag_s",
             Setting::ImplausibleSettleS => "implausible_settle_s",
-            Setting::MemoryShape => "feedforward",
+            Setting::MemoryShape | Setting::FeedforwardEffects => "feedforward",
             Setting::RecoverySamples => "recovery_samples",
             Setting::LatchWindowPeriods => "latch_window_periods",
         }
@@ -411,6 +433,9 @@ impl Setting {
             Setting::ImplausibleLagS | Setting::ImplausibleSettleS => "must be finite and >= 0 s",
             Setting::ImplausibleContraction => "must be finite and > 0",
             Setting::MemoryShape => "memory shape must be finite and in [0.05, 50]",
+            Setting::FeedforwardEffects => {
+                "effects must pass pam-core's validation, with dt_s at most 1 s"
+            }
             Setting::RecoverySamples | Setting::LatchWindowPeriods => "must be >= 1",
         }
     }
@@ -429,10 +454,6 @@ pub enum ConfigError {
     Invalid(Setting),
     /// A calibration or valve setting of the hardware layer is invalid.
     Hal(HalConfigError),
-    /// The coefficient blob's model has an effect this controller cannot run
-    /// (it runs the non-local memory; rate dependence, creep and a
-    /// load-dependent width are host-side effects for now).
-    UnsupportedEffect(&'static str),
 }
 
 impl From<HalConfigError> for ConfigError {
@@ -448,9 +469,6 @@ impl core::fmt::Display for ConfigError {
             ConfigError::Tracker(e) => write!(f, "tracker configuration refused: {e}"),
             ConfigError::Invalid(s) => write!(f, "`{}` {}", s.name(), s.requirement()),
             ConfigError::Hal(e) => write!(f, "hardware configuration refused: {e}"),
-            ConfigError::UnsupportedEffect(e) => {
-                write!(f, "the model's {e} cannot run on this controller")
-            }
         }
     }
 }

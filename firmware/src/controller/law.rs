@@ -15,16 +15,33 @@
 //! * The valve command is clamped to `[-1, 1]`.
 
 use super::config::{ControllerConfig, Feedforward};
-use pam_core::effects::{NonLocalMemory, Reversal, ReversalStack};
-use pam_core::{Branch, LoadModel};
+use super::monitor::ModelBand;
+use pam_core::effects::Effects;
+use pam_core::feedforward::{InverseState, ModelInverse};
+use pam_core::{Branch, Error, LoadModel, Params};
 
-/// Reversal points the [`Feedforward::HysteresisMemory`] feedforward
-/// remembers (nested minor loops); older ones are dropped.
+/// Reversal points the memory feedforward ([`Feedforward::HysteresisMemory`],
+/// or [`Feedforward::HysteresisEffects`] with memory) remembers (nested
+/// minor loops); older ones are dropped.
 pub const MEMORY_DEPTH: usize = 8;
 
 /// Bisection steps of the minor-loop feedforward's inverse (pam-core's
-/// [`ReversalStack::inverse_pressure_mpa`], in branch contraction).
+/// [`ReversalStack::inverse_pressure_mpa`](pam_core::effects::ReversalStack::inverse_pressure_mpa),
+/// in branch contraction).
 pub use pam_core::effects::memory::MEMORY_INVERSE_STEPS;
+
+/// The effects whose inverse `feedforward` runs, if it runs pam-core's
+/// [`ModelInverse`] (the memory and effects modes).
+pub(super) fn inverted_effects(feedforward: &Feedforward) -> Option<Effects> {
+    match feedforward {
+        Feedforward::HysteresisMemory(m) => Some(Effects {
+            memory: Some(*m),
+            ..Effects::NONE
+        }),
+        Feedforward::HysteresisEffects(e) => Some(*e),
+        Feedforward::Hysteresis | Feedforward::Constraint | Feedforward::Off => None,
+    }
+}
 
 /// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
 /// with bad bounds).
@@ -51,32 +68,70 @@ pub(super) struct Command {
     pub flow: f32,
 }
 
-/// The law's state: the integrator and the feedforward's loop memory.
-#[derive(Clone, Copy, Debug, Default)]
+/// The law's state: the integrator, and for a feedforward that inverts the
+/// model with effects, the inverse's constants and its state (memory, rate
+/// filter, creep lag).
+#[derive(Clone, Copy, Debug)]
 pub(super) struct Law {
     pub integral_mpa: f32,
-    memory: MemoryState,
+    inverse: Option<ModelInverse>,
+    state: InverseState<MEMORY_DEPTH>,
 }
 
 impl Law {
+    /// The law for a validated configuration (the inverse's constants are
+    /// computed here, once).
+    pub fn new(cfg: &ControllerConfig) -> Result<Law, Error> {
+        let inverse = match inverted_effects(&cfg.feedforward) {
+            Some(e) => Some(ModelInverse::new(e, cfg.dt_s)?),
+            None => None,
+        };
+        Ok(Law {
+            integral_mpa: 0.0,
+            inverse,
+            state: InverseState::default(),
+        })
+    }
+
     /// Bumpless restart after a fault: the integral built up before it does
     /// not apply to the state the muscle is in after it, and the safe state
-    /// vents (or holds) the muscle, so its loop history no longer applies.
+    /// vents (or holds) the muscle, so its loop history no longer applies;
+    /// nor do the feedforward's rate filter and creep lag.
     pub fn reset(&mut self) {
         self.integral_mpa = 0.0;
-        self.memory.clear();
+        self.state.reset();
     }
 
     /// The turning points belong to the old load's loop.
     pub fn load_switched(&mut self) {
-        self.memory.clear();
+        self.state.clear_memory();
     }
 
     /// The memory feedforward computed a minor loop's ends on this period
     /// (two branch inverses, table-free and slower while the tracker builds
     /// a new load's tables) instead of using its cached loop.
     pub fn rebuilt_loop(&self) -> bool {
-        self.memory.rebuilt_loop
+        self.state.rebuilt_loop()
+    }
+
+    /// How the feedforward's model widens the model check's band now
+    /// ([`ModelBand`]): the offset its width and rate added on the last
+    /// period, its shape at `load_n`.
+    pub fn model_band(&self, params: &Params, model: &LoadModel, load_n: f32) -> ModelBand {
+        let Some(inv) = &self.inverse else {
+            return ModelBand::default();
+        };
+        let e = inv.effects();
+        let s = self.state.offset_scale();
+        let extra_offset_mpa = if s > 1.0 {
+            (s - 1.0) * model.ellipse_height_mpa()
+        } else {
+            0.0
+        };
+        ModelBand {
+            extra_offset_mpa,
+            shape: e.shape.map(|s| s.at_load(params, load_n)),
+        }
     }
 
     /// One period on checked (finite, in range) readings. `ki_dt` is
@@ -87,7 +142,9 @@ impl Law {
         &mut self,
         cfg: &ControllerConfig,
         ki_dt: f32,
+        params: &Params,
         model: &LoadModel,
+        load_n: f32,
         branch: Branch,
         branch_switch: bool,
         desired_contraction: f32,
@@ -106,10 +163,22 @@ impl Law {
             // eq. (21): the constraint model, between the two branches.
             Feedforward::Constraint => model.constraint_pressure_mpa(x_ref),
             Feedforward::Off => 0.0,
-            // eqs. (25)/(26) with pam-core's minor loops between reversals.
-            Feedforward::HysteresisMemory(mem) => {
-                self.memory
-                    .feedforward_mpa(&mem, model, x_ref, branch, branch_switch)
+            // eqs. (25)/(26) with the effects inverted (pam-core's
+            // `ModelInverse`: creep, shape, width and rate, minor loops).
+            Feedforward::HysteresisMemory(_) | Feedforward::HysteresisEffects(_) => {
+                match &self.inverse {
+                    Some(inv) => inv.pressure_mpa(
+                        &mut self.state,
+                        params,
+                        model,
+                        load_n,
+                        x_ref,
+                        branch,
+                        branch_switch,
+                    ),
+                    // `Law::new` builds the inverse for these modes.
+                    None => model.pressure_mpa(x_ref, branch),
+                }
             }
         };
         let error = x_ref - contraction;
@@ -140,103 +209,5 @@ impl Law {
             pressure_cmd_mpa,
             flow,
         }
-    }
-}
-
-/// State of the [`Feedforward::HysteresisMemory`] feedforward: the reversal
-/// points `(feedforward pressure, desired contraction)` and the extreme of
-/// the current sweep (the next reversal's turning point).
-#[derive(Clone, Copy, Debug, Default)]
-struct MemoryState {
-    stack: ReversalStack<MEMORY_DEPTH>,
-    extreme: Option<Reversal>,
-    /// The memory with `extreme` pushed, kept while the set-point backs off
-    /// from it (so its minor loop stays cached); valid while `trial_valid`.
-    trial: ReversalStack<MEMORY_DEPTH>,
-    trial_valid: bool,
-    /// The last feedforward computed a minor loop's ends (two branch
-    /// inverses) instead of using the cached loop.
-    rebuilt_loop: bool,
-}
-
-impl MemoryState {
-    fn clear(&mut self) {
-        self.stack.clear();
-        self.extreme = None;
-        self.trial_valid = false;
-        self.rebuilt_loop = false;
-    }
-
-    /// The feedforward pressure that holds `x_ref` on the memory's curve for
-    /// `branch`, then the memory's update for this sample.
-    ///
-    /// The mode tracker switches the branch only once the set-point has
-    /// moved `direction_deadband` back from the sweep's extreme. In between,
-    /// following the old branch backwards and then changing curve at the
-    /// switch would jump by the two curves' slope difference times the
-    /// deadband (up to 0.02 MPa where a minor loop is steep). So while the
-    /// set-point is back from the extreme the feedforward already follows
-    /// the curve the reversal will start, a trial copy of the memory with
-    /// the extreme pushed, on the opposite branch; at the switch the real
-    /// memory takes the same push and the feedforward continues without a
-    /// step. If the set-point turns again first, that curve passes through
-    /// the extreme, so the return to the old sweep is continuous too.
-    fn feedforward_mpa(
-        &mut self,
-        params: &NonLocalMemory,
-        model: &LoadModel,
-        x_ref: f32,
-        branch: Branch,
-        branch_switch: bool,
-    ) -> f32 {
-        self.rebuilt_loop = false;
-        if branch_switch {
-            if let Some(r) = self.extreme.take() {
-                self.stack.push(r);
-            }
-        }
-        if let Some(e) = self.extreme {
-            let backing_off = match branch {
-                Branch::Contraction => x_ref < e.contraction,
-                Branch::Expansion => x_ref > e.contraction,
-            };
-            if backing_off {
-                if !self.trial_valid {
-                    self.trial = self.stack;
-                    self.trial.push(e);
-                    self.trial_valid = true;
-                }
-                self.rebuilt_loop = !self.trial.has_cached_loop();
-                return self.trial.inverse_pressure_mpa(
-                    params,
-                    model,
-                    x_ref,
-                    branch.opposite(),
-                    1.0,
-                );
-            }
-        }
-        // The memory moves on (wipe-out, new extreme): the trial is stale.
-        self.trial_valid = false;
-        let before = self.stack.points().len();
-        let cached = self.stack.has_cached_loop();
-        let p_mpa = if self.stack.points().is_empty() {
-            // No reversal remembered: `x(p)` is the branch inverse, whose
-            // inverse is the forward model, eqs. (25)/(26).
-            model.pressure_mpa(x_ref, branch)
-        } else {
-            self.stack
-                .inverse_pressure_mpa(params, model, x_ref, branch, 1.0)
-        };
-        self.stack.wipe_out(p_mpa, branch);
-        // A loop's ends were computed unless the cached loop served (a
-        // closed loop, popped here, was evaluated afresh).
-        self.rebuilt_loop = before > 0 && (!cached || self.stack.points().len() < before);
-        // At or beyond the sweep's extreme: the turning point of the next reversal.
-        self.extreme = Some(Reversal {
-            pressure_mpa: p_mpa,
-            contraction: x_ref,
-        });
-        p_mpa
     }
 }

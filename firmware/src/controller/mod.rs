@@ -46,10 +46,13 @@
 //! evaluation and two inverse evaluations (the plausibility band) and,
 //! after a load switch, at most [`TABLE_BUILD_UNITS_PER_STEP`] units of the
 //! new model's inverse-table build per step until it is complete (the new
-//! model's forward evaluation is active from the switch). No
-//! allocation, no loops over data, no panicking operation (no indexing by
-//! runtime values, no division by a runtime value other than in `f32`,
-//! which saturates to ±inf or NaN and is clamped).
+//! model's forward evaluation is active from the switch). A feedforward
+//! with effects adds pam-core's `ModelInverse` (bounded loops only: the
+//! shape's and the memory's bisections of fixed length, `N/2 + 1`
+//! wipe-out passes) and builds [`TABLE_BUILD_UNITS_PER_STEP_EFFECTS`] units
+//! per step instead. No allocation, no loops over data, no panicking
+//! operation (no indexing by runtime values, no division by a runtime value
+//! other than in `f32`, which saturates to ±inf or NaN and is clamped).
 
 pub mod config;
 pub mod io;
@@ -66,7 +69,7 @@ pub use monitor::{Check, Fault, SensorId};
 use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, Valve};
 use law::Law;
 use monitor::Monitor;
-use pam_core::{Branch, Coeffs, Tracker, Update};
+use pam_core::{Branch, Coeffs, Effects, Tracker, Update};
 
 /// Work units of a load switch's inverse-table build per step (one forward
 /// evaluation or one Newton step each, see [`Tracker::set_build_budget`]),
@@ -80,46 +83,84 @@ use pam_core::{Branch, Coeffs, Tracker, Update};
 /// feedforward's branch inverse is pam-core's slower table-free one.
 pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 10;
 
+/// [`TABLE_BUILD_UNITS_PER_STEP`] for a feedforward that inverts effects
+/// other than the memory ([`Feedforward::HysteresisEffects`]): its step costs
+/// more (the shape's bisection, the rate law's `powf`), so fewer units keep
+/// the worst case under 2 000 instructions (bench-m4); a complete build
+/// then takes at most `BUILD_UNITS_MAX / 4` = 440 periods.
+pub const TABLE_BUILD_UNITS_PER_STEP_EFFECTS: u16 = 4;
+
+/// The table-build units per step for `feedforward`.
+fn table_build_units(feedforward: &Feedforward) -> u16 {
+    match feedforward {
+        Feedforward::HysteresisEffects(e)
+            if e.rate.is_some() || e.creep.is_some() || e.width.is_some() || e.shape.is_some() =>
+        {
+            TABLE_BUILD_UNITS_PER_STEP_EFFECTS
+        }
+        _ => TABLE_BUILD_UNITS_PER_STEP,
+    }
+}
+
 /// The coefficients of a blob (version 1 or 2, [`pam_core::blob`]) and the
 /// feedforward that runs its model, from the configured one:
 ///
-/// * a model with non-local memory turns [`Feedforward::Hysteresis`] (and
-///   a hand-set [`Feedforward::HysteresisMemory`]) into
-///   `HysteresisMemory` with the blob's memory shape and merge span; the
-///   comparison modes [`Feedforward::Constraint`] and [`Feedforward::Off`]
-///   stay as configured;
-/// * a model with rate dependence, creep, a load-dependent width or a
-///   constraint-shape correction is refused ([`ConfigError::UnsupportedEffect`]): the controller would
-///   run a different model than the one identified.
+/// * a model with effects turns [`Feedforward::Hysteresis`] (and a
+///   hand-set [`Feedforward::HysteresisMemory`] or
+///   [`Feedforward::HysteresisEffects`]) into the feedforward that inverts
+///   the blob's model with all of them: `HysteresisMemory` with the blob's
+///   memory shape and merge span when the memory is its only effect,
+///   `HysteresisEffects` with the blob's effects otherwise (pam-core's
+///   [`ModelInverse`](pam_core::feedforward::ModelInverse) either way);
+/// * a model without effects keeps the configured feedforward (a hand-set
+///   memory or effects feedforward included);
+/// * the comparison modes [`Feedforward::Constraint`] and
+///   [`Feedforward::Off`] stay as configured.
+///
+/// The effects are validated here (what `decode_model` checks).
+///
+/// ```
+/// use firmware::controller::{model_from_blob, Feedforward};
+/// use pam_core::effects::{Creep, Effects};
+///
+/// let effects = Effects {
+///     creep: Some(Creep { gain: 0.3, time_constant_s: 2.0 }),
+///     ..Effects::NONE
+/// };
+/// let blob = pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects);
+/// let (_, ff) = model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
+/// assert_eq!(ff, Feedforward::HysteresisEffects(effects));
+/// // The paper's model alone from a version-1 blob.
+/// let plain = pam_core::blob::encode(&pam_core::Params::DEFAULT);
+/// let (_, ff) = model_from_blob(&plain, Feedforward::Hysteresis).unwrap();
+/// assert_eq!(ff, Feedforward::Hysteresis);
+/// ```
 pub fn model_from_blob(
     blob: &[u8],
     feedforward: Feedforward,
 ) -> Result<(Coeffs, Feedforward), ConfigError> {
     let (params, effects) =
         pam_core::blob::decode_model_params(blob).map_err(ConfigError::Coefficients)?;
-    // The effects this controller cannot run are refused before anything is
-    // validated; the memory is validated here (what `decode_model` checks,
-    // without linking the other effects' validation into the image).
-    if effects.rate.is_some() {
-        return Err(ConfigError::UnsupportedEffect("rate dependence"));
-    }
-    if effects.creep.is_some() {
-        return Err(ConfigError::UnsupportedEffect("creep"));
-    }
-    if effects.width.is_some() {
-        return Err(ConfigError::UnsupportedEffect("load-dependent width"));
-    }
-    if effects.shape.is_some() {
-        return Err(ConfigError::UnsupportedEffect("constraint shape"));
-    }
-    if let Some(m) = effects.memory {
-        m.validate().map_err(ConfigError::Coefficients)?;
-    }
+    effects.validate().map_err(ConfigError::Coefficients)?;
     let coeffs = Coeffs::new(params).map_err(ConfigError::Coefficients)?;
+    let memory_only = Effects {
+        memory: effects.memory,
+        ..Effects::NONE
+    } == effects;
     let feedforward = match (effects.memory, feedforward) {
-        (Some(m), Feedforward::Hysteresis | Feedforward::HysteresisMemory(_)) => {
-            Feedforward::HysteresisMemory(m)
-        }
+        (_, ff) if effects == Effects::NONE => ff,
+        (
+            Some(m),
+            Feedforward::Hysteresis
+            | Feedforward::HysteresisMemory(_)
+            | Feedforward::HysteresisEffects(_),
+        ) if memory_only => Feedforward::HysteresisMemory(m),
+        (
+            _,
+            Feedforward::Hysteresis
+            | Feedforward::HysteresisMemory(_)
+            | Feedforward::HysteresisEffects(_),
+        ) => Feedforward::HysteresisEffects(effects),
         (_, ff) => ff,
     };
     Ok((coeffs, feedforward))
@@ -167,6 +208,8 @@ pub struct Controller {
     good_run: u16,
     /// `ki_mpa_per_s · dt_s`, computed once.
     ki_dt: f32,
+    /// Table-build units per step ([`table_build_units`]).
+    build_units: u16,
     /// Updates since construction (wrapping), for the latch window.
     period: u32,
 }
@@ -187,13 +230,23 @@ impl Controller {
         // A load switch's table build, spread over the periods that follow
         // it: the step's worst case stays bounded (bench-m4 `load_switch`).
         tracker.defer_build();
+        // `validate` checked the effects and the period the inverse needs.
+        let law = Law::new(&config).map_err(ConfigError::Coefficients)?;
         Ok(Controller {
-            monitor: Monitor::new(&config.safety, &coeffs, config.dt_s),
+            monitor: Monitor::new(
+                &config.safety,
+                &coeffs,
+                config.dt_s,
+                law::inverted_effects(&config.feedforward)
+                    .and_then(|e| e.creep)
+                    .map(|c| c.time_constant_s),
+            ),
             ki_dt: config.ki_mpa_per_s * config.dt_s,
+            build_units: table_build_units(&config.feedforward),
             coeffs,
             config,
             tracker,
-            law: Law::default(),
+            law,
             fault: None,
             good_run: 0,
             period: 0,
@@ -327,7 +380,7 @@ impl Controller {
             let units = if self.law.rebuilt_loop() {
                 0
             } else {
-                TABLE_BUILD_UNITS_PER_STEP
+                self.build_units
             };
             self.tracker.advance_build(units);
         }
@@ -380,8 +433,14 @@ impl Controller {
             self.enter_fault(f, &mut step);
             return step;
         }
+        let band = self.law.model_band(
+            self.coeffs.params(),
+            self.tracker.model(),
+            self.tracker.load_n(),
+        );
         let (excess, fault) = self.monitor.check_model(
             self.tracker.model(),
+            &band,
             pressure_mpa,
             contraction,
             self.fault.is_none(),
@@ -409,7 +468,9 @@ impl Controller {
         let c = self.law.command(
             &self.config,
             self.ki_dt,
+            self.coeffs.params(),
             self.tracker.model(),
+            self.tracker.load_n(),
             self.tracker.branch(),
             step.tracker.branch_switch.is_some(),
             desired_contraction,

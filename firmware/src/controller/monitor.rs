@@ -311,10 +311,30 @@ pub(super) struct Monitor {
     latch: Latch,
 }
 
+/// How a model with effects widens the model check's band.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ModelBand {
+    /// `(S − 1)·be` for the offset scale `S > 1` of width and rate, MPa
+    /// (0 without them).
+    pub extra_offset_mpa: f32,
+    /// The shape correction at the active load.
+    pub shape: Option<pam_core::effects::ConstraintShape>,
+}
+
 impl Monitor {
     /// The rule table for `s` and the coefficients' calibrated load range
     /// and `Pmax`.
-    pub fn new(s: &SafetyConfig, coeffs: &Coeffs, dt_s: f32) -> Monitor {
+    ///
+    /// `creep_time_constant_s`: the model's creep, if it has one. The
+    /// contraction then keeps moving towards the static curve for a few
+    /// time constants after the pressure stops, so the pressure envelope
+    /// relaxes with the longer of that and `implausible_lag_s`.
+    pub fn new(
+        s: &SafetyConfig,
+        coeffs: &Coeffs,
+        dt_s: f32,
+        creep_time_constant_s: Option<f32>,
+    ) -> Monitor {
         use SensorId::*;
         let p = coeffs.params();
         let pmax = p.points.max_pressure_mpa;
@@ -366,10 +386,16 @@ impl Monitor {
             last_flow: 0.0,
             last_mpa: 0.0,
             band: s.implausible_contraction,
-            envelope_gain: if s.implausible_lag_s > dt_s {
-                dt_s / s.implausible_lag_s
-            } else {
-                1.0
+            envelope_gain: {
+                let lag_s = match creep_time_constant_s {
+                    Some(tau) if tau > s.implausible_lag_s => tau,
+                    _ => s.implausible_lag_s,
+                };
+                if lag_s > dt_s {
+                    dt_s / lag_s
+                } else {
+                    1.0
+                }
             },
             envelope_lo_mpa: f32::NAN,
             envelope_hi_mpa: f32::NAN,
@@ -462,10 +488,15 @@ impl Monitor {
     /// whether it has been beyond the band by more than the bound for
     /// `implausible_periods` periods in a row. The envelope follows every
     /// good sample; the count only runs while `controlling`.
+    ///
+    /// A model with effects widens the band ([`ModelBand`]): by the extra
+    /// ellipse offset of its width and rate, and through its shape
+    /// correction.
     #[inline(always)]
     pub fn check_model(
         &mut self,
         model: &LoadModel,
+        widen: &ModelBand,
         pressure_mpa: f32,
         contraction: f32,
         controlling: bool,
@@ -492,8 +523,20 @@ impl Monitor {
         // a pressure. At one pressure the expansion branch is the longer
         // contraction (HME = HMC − 2·y_hys), so the two bound the loop and
         // every minor loop inside it.
-        let a = model.contraction(self.envelope_lo_mpa, Branch::Contraction);
-        let b = model.contraction(self.envelope_hi_mpa, Branch::Expansion);
+        //
+        // With the offset scaled by `S > 1` a branch at pressure `p` is the
+        // paper's branch at `p ∓ (S − 1)·y_hys`, and `y_hys ≤ be`: the
+        // paper's branches at pressures moved out by `(S − 1)·be` bound it
+        // (a scale below 1 narrows the loop, inside the paper's band).
+        let extra = widen.extra_offset_mpa;
+        let a = model.contraction(self.envelope_lo_mpa - extra, Branch::Contraction);
+        let b = model.contraction(self.envelope_hi_mpa + extra, Branch::Expansion);
+        // The shape correction is increasing along the stroke: it maps the
+        // band's ends to the corrected band's.
+        let (a, b) = match &widen.shape {
+            Some(s) => (s.apply(model, a), s.apply(model, b)),
+            None => (a, b),
+        };
         let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
         let excess = if contraction < lo {
             lo - contraction

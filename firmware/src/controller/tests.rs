@@ -456,6 +456,74 @@ fn memory_shape_is_validated() {
     }
 }
 
+#[test]
+fn effects_are_validated_and_each_runs_from_a_blob() {
+    use pam_core::effects::{ConstraintShape, Creep, Effects, LoadDependentWidth, RateDependence};
+    let none = Effects::NONE;
+    let each = [
+        Effects {
+            rate: Some(RateDependence::linear(1.0, 2.0)),
+            ..none
+        },
+        Effects {
+            creep: Some(Creep {
+                gain: 0.3,
+                time_constant_s: 1.0,
+            }),
+            ..none
+        },
+        Effects {
+            width: Some(LoadDependentWidth {
+                scale_at_min_load: 1.0,
+                scale_per_step: 0.2,
+            }),
+            ..none
+        },
+        Effects {
+            shape: Some(ConstraintShape {
+                bulge: 0.2,
+                ..ConstraintShape::NEUTRAL
+            }),
+            ..none
+        },
+    ];
+    for e in each {
+        let blob = pam_core::blob::encode_v2(&Params::DEFAULT, &e);
+        let (_, ff) = super::model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
+        assert_eq!(ff, Feedforward::HysteresisEffects(e));
+        // The comparison modes stay as configured.
+        let (_, off) = super::model_from_blob(&blob, Feedforward::Off).unwrap();
+        assert_eq!(off, Feedforward::Off);
+        let mut cfg = synthetic();
+        cfg.feedforward = Feedforward::Hysteresis;
+        let mut c = Controller::from_blob(&blob, cfg, 200.0).unwrap();
+        // Up, back and up again (no fault on the way, `sweep` checks):
+        // finite feedforward within [0, Pmax].
+        for (ff_mpa, _) in sweep(&mut c, &[0.06, 0.16, 0.08, 0.12]) {
+            assert!((0.0..=0.5).contains(&ff_mpa), "{e:?}: {ff_mpa}");
+        }
+    }
+    // Invalid effects, or a period the inverse cannot integrate, are refused.
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.feedforward = Feedforward::HysteresisEffects(Effects {
+        creep: Some(Creep {
+            gain: 2.0,
+            time_constant_s: 1.0,
+        }),
+        ..none
+    });
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::FeedforwardEffects))
+    );
+    cfg.feedforward = Feedforward::HysteresisEffects(each[1]);
+    cfg.dt_s = 2.0;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::FeedforwardEffects))
+    );
+}
+
 /// Readings with the muscle short of a far set-point (inlet saturated
 /// open), the pressure at `p` dithered by a count so nothing is stuck.
 fn starved(k: u32, p: f32) -> Sample {
@@ -700,7 +768,7 @@ fn fast_and_full_checks_agree_on_every_sample() {
                         contraction: x,
                         load_n: l,
                     };
-                    let mut fast = monitor::Monitor::new(&s, &coeffs, 1e-3);
+                    let mut fast = monitor::Monitor::new(&s, &coeffs, 1e-3, None);
                     let mut full = fast;
                     assert_eq!(
                         fast.check(&sample, sp),

@@ -54,20 +54,49 @@ impl Creep {
     /// `dt_s` outside `(0, 10]` s holds the lag; a non-finite static value
     /// is returned unchanged by the lag and leaves the state as it was.
     pub fn step(&self, state: &mut CreepState, static_contraction: f32, dt_s: f32) -> f32 {
+        self.advance(state, static_contraction, self.lag_gain(dt_s))
+    }
+
+    /// The lag's gain over one step of `dt_s`: `1 − e^(−dt/τ)`, the exact
+    /// zero-order-hold step of `τ·ẏ = u − y`; 0 (the lag held) for a `dt_s`
+    /// outside `(0, 10]` s. A controller with a fixed period computes it once.
+    pub fn lag_gain(&self, dt_s: f32) -> f32 {
+        if dt_s > 0.0 && dt_s <= 10.0 {
+            1.0 - libm::expf(-dt_s / self.time_constant_s)
+        } else {
+            0.0
+        }
+    }
+
+    /// [`Self::step`] with the lag's gain given ([`Self::lag_gain`]).
+    pub fn advance(&self, state: &mut CreepState, static_contraction: f32, lag_gain: f32) -> f32 {
         if !static_contraction.is_finite() {
             return state.lagged.unwrap_or(0.0);
         }
         let y = match state.lagged {
             None => static_contraction,
-            Some(y) if dt_s > 0.0 && dt_s <= 10.0 => {
-                // Exact zero-order-hold step of τ·ẏ = u − y.
-                let k = 1.0 - libm::expf(-dt_s / self.time_constant_s);
-                y + k * (static_contraction - y)
-            }
-            Some(y) => y,
+            Some(y) => y + lag_gain * (static_contraction - y),
         };
         state.lagged = Some(y);
         (1.0 - self.gain) * static_contraction + self.gain * y
+    }
+
+    /// The inverse of [`Self::advance`] for a feedforward: the static
+    /// contraction that makes the next output `contraction`, from the lag
+    /// state (not changed; advance it with the result, clamped as the
+    /// caller's model clamps it). Closed form: the output is
+    /// `(1 − g·(1 − k))·u + g·(1 − k)·y` for the input `u`, lag `y`, gain
+    /// `g` and lag gain `k`, and `1 − g·(1 − k) ≥ 1 − 0.95` for a validated
+    /// gain. Before the first sample the output is the input. A non-finite
+    /// `contraction` is returned as it is (the caller clamps it).
+    pub fn static_contraction(&self, state: &CreepState, contraction: f32, lag_gain: f32) -> f32 {
+        match state.lagged {
+            None => contraction,
+            Some(y) => {
+                let slow = self.gain * (1.0 - lag_gain);
+                (contraction - slow * y) / (1.0 - slow)
+            }
+        }
     }
 }
 
@@ -100,6 +129,27 @@ mod tests {
         // After 2 s (one τ): 1 − 0.4·e⁻¹ of the step.
         let want = 0.1 + 0.1 * (1.0 - 0.4 * (-1.0f32).exp());
         assert!((x - want).abs() < 1e-4, "{x} vs {want}");
+    }
+
+    #[test]
+    fn static_contraction_inverts_advance() {
+        let c = Creep {
+            gain: 0.8,
+            time_constant_s: 0.5,
+        };
+        let k = c.lag_gain(0.01);
+        let mut s = CreepState::default();
+        assert_eq!(c.static_contraction(&s, 0.12, k), 0.12);
+        c.advance(&mut s, 0.1, k);
+        for want in [0.15f32, 0.2, 0.05, 0.05, 0.3] {
+            let u = c.static_contraction(&s, want, k);
+            let mut trial = s;
+            let got = c.advance(&mut trial, u, k);
+            assert!((got - want).abs() < 1e-6, "{got} vs {want}");
+            s = trial;
+        }
+        assert_eq!(c.lag_gain(f32::NAN), 0.0);
+        assert_eq!(c.lag_gain(11.0), 0.0);
     }
 
     #[test]

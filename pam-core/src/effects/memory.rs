@@ -64,8 +64,11 @@ pub const MEMORY_INVERSE_STEPS: usize = 24;
 
 /// The pressure on `branch` at branch contraction `x` with the ellipse
 /// offset scaled by `offset_scale` (eqs. 25/26; 1: the paper's model), in
-/// `[0, Pmax]`: the forward counterpart of [`branch_contraction`].
-fn branch_pressure_mpa(model: &LoadModel, x: f32, branch: Branch, offset_scale: f32) -> f32 {
+/// `[0, Pmax]`: the forward counterpart of [`branch_contraction`] (the
+/// model's closed-form direction: constraint pressure plus the scaled
+/// offset).
+#[inline]
+pub fn branch_pressure_mpa(model: &LoadModel, x: f32, branch: Branch, offset_scale: f32) -> f32 {
     if offset_scale == 1.0 {
         return model.pressure_mpa(x, branch);
     }
@@ -206,6 +209,8 @@ struct Segment {
     merge_bits: u32,
     /// `B(p_r)`.
     b_r: f32,
+    /// `B(p_t)` (or of the major loop's end).
+    b_t: f32,
     /// `1/(B(p_r) − B(p_t))`, raised in magnitude to `1/merge_span` when the
     /// loop is longer than the merge span; 0 for a degenerate loop.
     inv_progress: f32,
@@ -312,6 +317,21 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
     ) -> Option<Segment> {
+        self.segment_with(blend, model, branch, offset_scale, Ends::Exact)
+    }
+
+    /// [`Self::segment`] with the loop's ends solved as `ends` says; with
+    /// [`Ends::Newton`] a cached loop that differs only in the offset scale
+    /// moves its ends by one Newton step each.
+    #[inline(always)]
+    fn segment_with(
+        &mut self,
+        blend: Blend,
+        model: &LoadModel,
+        branch: Branch,
+        offset_scale: f32,
+        ends: Ends,
+    ) -> Option<Segment> {
         let (origin, target) = self.top2();
         let origin = origin?;
         let scale_bits = offset_scale.to_bits();
@@ -327,8 +347,37 @@ impl<const N: usize> ReversalStack<N> {
             {
                 return Some(s);
             }
+            if ends == Ends::Newton
+                && s.branch == branch
+                && s.load_bits == load_bits
+                && s.max_contraction_bits == max_contraction_bits
+                && s.merge_bits == merge_bits
+            {
+                let warm = Some((s.b_r, s.b_t));
+                let s = Segment::new(
+                    blend,
+                    model,
+                    origin,
+                    target,
+                    branch,
+                    offset_scale,
+                    ends,
+                    warm,
+                );
+                self.segment = Some(s);
+                return Some(s);
+            }
         }
-        let s = Segment::new(blend, model, origin, target, branch, offset_scale);
+        let s = Segment::new(
+            blend,
+            model,
+            origin,
+            target,
+            branch,
+            offset_scale,
+            ends,
+            None,
+        );
         self.segment = Some(s);
         Some(s)
     }
@@ -406,6 +455,55 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
     ) -> f32 {
+        self.inverse_impl(
+            params,
+            model,
+            contraction,
+            branch,
+            offset_scale,
+            Ends::Exact,
+        )
+    }
+
+    /// [`Self::inverse_pressure_mpa`] for a feedforward called every period
+    /// while the offset scale changes (the rate effect): when only the scale
+    /// changed since the cached loop, its ends follow it by one Newton step
+    /// each on the same equation (eqs. 25/26 with the scaled offset), from
+    /// the cached ends, instead of two bisections ([`branch_contraction`],
+    /// [`SCALED_INVERSE_STEPS`](super::SCALED_INVERSE_STEPS) steps each); a
+    /// new loop's ends are exact. So the ends follow the scale over the
+    /// periods with bounded work. The same as [`Self::inverse_pressure_mpa`]
+    /// while the scale holds; after a change of 1 % in one period, within
+    /// 10⁻⁴ of contraction (`newton_ends_match_the_bisection`).
+    pub fn feedforward_pressure_mpa(
+        &mut self,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        contraction: f32,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> f32 {
+        self.inverse_impl(
+            params,
+            model,
+            contraction,
+            branch,
+            offset_scale,
+            Ends::Newton,
+        )
+    }
+
+    // Inlined into both callers, so each is specialised for its `ends`.
+    #[inline(always)]
+    fn inverse_impl(
+        &mut self,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        contraction: f32,
+        branch: Branch,
+        offset_scale: f32,
+        ends: Ends,
+    ) -> f32 {
         let (lo_x, hi_x) = (model.root_contraction(), model.max_contraction());
         let x_ref = clamp(contraction, lo_x, hi_x);
         let mut len = self.len.min(N);
@@ -429,13 +527,22 @@ impl<const N: usize> ReversalStack<N> {
         let blend = params.blend_coeffs();
         let seg = if len == self.len {
             // The top loop: cached between calls, as for `contraction`.
-            match self.segment(blend, model, branch, offset_scale) {
+            match self.segment_with(blend, model, branch, offset_scale, ends) {
                 Some(seg) => seg,
                 None => return branch_pressure_mpa(model, x_ref, branch, offset_scale),
             }
         } else {
             let target = len.checked_sub(2).and_then(|i| self.points.get(i)).copied();
-            Segment::new(blend, model, origin, target, branch, offset_scale)
+            Segment::new(
+                blend,
+                model,
+                origin,
+                target,
+                branch,
+                offset_scale,
+                ends,
+                None,
+            )
         };
         if let Some(b) = seg.solve(blend, x_ref) {
             return branch_pressure_mpa(model, clamp(b, lo_x, hi_x), branch, offset_scale);
@@ -509,7 +616,9 @@ impl<const N: usize> ReversalStack<N> {
 
 impl Segment {
     /// The minor loop from `origin` towards `target` (the end of the major
-    /// loop when `None`): two branch inverses.
+    /// loop when `None`): two branch inverses, solved as `ends` says
+    /// (`warm`: the ends of the same loop at another offset scale).
+    #[allow(clippy::too_many_arguments)]
     fn new(
         blend: Blend,
         model: &LoadModel,
@@ -517,24 +626,27 @@ impl Segment {
         target: Option<Reversal>,
         branch: Branch,
         offset_scale: f32,
+        ends: Ends,
+        warm: Option<(f32, f32)>,
     ) -> Segment {
         let scale_bits = offset_scale.to_bits();
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
-        let b_r = branch_contraction(model, origin.pressure_mpa, branch, offset_scale);
+        let end = |p: f32, x0: Option<f32>| ends.solve(model, p, branch, offset_scale, x0);
+        let b_r = end(origin.pressure_mpa, warm.map(|w| w.0));
         let (b_t, d_t) = match target {
             Some(t) => {
-                let b_t = branch_contraction(model, t.pressure_mpa, branch, offset_scale);
+                let b_t = end(t.pressure_mpa, warm.map(|w| w.1));
                 (b_t, t.contraction - b_t)
             }
             // The first reversal's curve closes on the end of the major loop.
             None => {
-                let end = match branch {
+                let p_end = match branch {
                     Branch::Contraction => model.max_pressure_mpa(),
                     Branch::Expansion => 0.0,
                 };
-                (branch_contraction(model, end, branch, offset_scale), 0.0)
+                (end(p_end, warm.map(|w| w.1)), 0.0)
             }
         };
         let span = b_r - b_t;
@@ -559,6 +671,7 @@ impl Segment {
             wipe_sign,
             wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
             b_r,
+            b_t,
             inv_progress,
             d_t,
             // A degenerate loop sits at the target's offset (s is 1 there).
@@ -636,6 +749,75 @@ impl Segment {
     }
 }
 
+/// Contraction step of the Newton solver's difference quotient.
+const NEWTON_H: f32 = 1e-4;
+
+/// How a minor loop's ends are solved for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Ends {
+    /// [`branch_contraction`] (a bisection at a scale other than 1): what
+    /// the forward model computes.
+    Exact,
+    /// Newton steps on the same equation (the feedforward's bounded path).
+    Newton,
+}
+
+impl Ends {
+    /// The branch contraction at `pressure_mpa`; `x0` a starting point
+    /// for [`Ends::Newton`] (one step from it; without one, exact).
+    fn solve(
+        self,
+        model: &LoadModel,
+        pressure_mpa: f32,
+        branch: Branch,
+        offset_scale: f32,
+        x0: Option<f32>,
+    ) -> f32 {
+        if self == Ends::Exact || offset_scale == 1.0 {
+            return branch_contraction(model, pressure_mpa, branch, offset_scale);
+        }
+        match x0 {
+            Some(x0) => newton_branch(model, pressure_mpa, branch, offset_scale, x0, 1),
+            None => branch_contraction(model, pressure_mpa, branch, offset_scale),
+        }
+    }
+}
+
+/// `steps` Newton steps from `x0` on `CM(x) ± offset_scale·y_hys(x) = p`
+/// (the equation [`branch_contraction`] bisects), with a difference
+/// quotient for the slope; each step clamped to the stroke, and none taken
+/// where the slope is not positive (the curve is not increasing there).
+/// Pressure clamped to `[0, Pmax]`, the scale as in [`branch_contraction`].
+fn newton_branch(
+    model: &LoadModel,
+    pressure_mpa: f32,
+    branch: Branch,
+    offset_scale: f32,
+    x0: f32,
+    steps: usize,
+) -> f32 {
+    let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+    let (lo, hi) = (model.root_contraction(), model.max_contraction());
+    let g = |x: f32| model.constraint_pressure_mpa(x) + k * model.offset_mpa(x);
+    let mut x = clamp(x0, lo, hi);
+    for _ in 0..steps {
+        // The quotient inward at the upper end of the stroke.
+        let h = if x + NEWTON_H <= hi {
+            NEWTON_H
+        } else {
+            -NEWTON_H
+        };
+        let gx = g(x);
+        let slope = (g(x + h) - gx) / h;
+        if !(slope > 0.0) {
+            break;
+        }
+        x = clamp(x - (gx - p) / slope, lo, hi);
+    }
+    x
+}
+
 /// The threshold `θ` of the wiping-out test for the point `target` below the
 /// top on `branch`: wiped out when `p > θ` rising, `p < θ` falling, for a
 /// finite unclamped `p`.
@@ -667,6 +849,33 @@ fn wipe_threshold(target: Option<Reversal>, branch: Branch, max_pressure_mpa: f3
 mod tests {
     use super::*;
     use crate::{Coeffs, Params};
+
+    #[test]
+    fn newton_ends_match_the_bisection() {
+        let c = Coeffs::new(Params::DEFAULT).unwrap();
+        let mut worst = [0.0f32; 2];
+        for load in [100.0f32, 250.0, 400.0, 600.0] {
+            let m = c.load_model(load).unwrap();
+            let pmax = m.max_pressure_mpa();
+            for br in [Branch::Contraction, Branch::Expansion] {
+                for i in 1..40 {
+                    let p = pmax * i as f32 / 40.0;
+                    for scale in [0.1f32, 0.5, 0.9, 1.1, 1.5, 2.0, 3.0, 4.0] {
+                        let exact = branch_contraction(&m, p, br, scale);
+                        // The scale moved by 1 % (5 %) since the last period.
+                        for (w, step) in worst.iter_mut().zip([0.99f32, 0.95]) {
+                            let before = branch_contraction(&m, p, br, scale * step);
+                            let warm = Ends::Newton.solve(&m, p, br, scale, Some(before));
+                            *w = w.max((warm - exact).abs());
+                        }
+                        assert_eq!(Ends::Newton.solve(&m, p, br, scale, None), exact);
+                    }
+                }
+            }
+        }
+        assert!(worst[0] < 1e-4, "{worst:?}");
+        assert!(worst[1] < 2e-3, "{worst:?}");
+    }
 
     fn model() -> LoadModel {
         Coeffs::new(Params::DEFAULT)

@@ -1,0 +1,370 @@
+//! [`ModelInverse`]: the inverse of the [`Simulator`](crate::Simulator)'s
+//! model with [`Effects`], for a feedforward: given the desired contraction,
+//! the pressure that makes the model produce it.
+//!
+//! The forward chain is branch → offset scale (width × rate) → branch
+//! contraction → minor loop of the memory → shape correction → creep lag;
+//! the inverse runs it backwards, each step through the effect's own
+//! inverse (no second copy of any equation):
+//!
+//! 1. creep: the static contraction that makes the lag's next output the
+//!    desired one, in closed form from the lag state
+//!    ([`Creep::static_contraction`]), clamped to the stroke; the lag then
+//!    advances with it as the model's does;
+//! 2. shape: the model's contraction whose corrected value that is
+//!    ([`ConstraintShape::model_contraction`] at the active load);
+//! 3. the offset scale of width and rate ([`offset_scale`]), the rate from
+//!    the feedforward's own filter (the effect's [`RateState`]) of the
+//!    constraint pressure (eq. 21) at the model contraction it asked for, up
+//!    to the previous period: the rate of the desired motion. Not of the
+//!    pressure it commands, which depends on that rate through the offset:
+//!    that loop oscillates at 1 kHz (see [`ModelInverse::pressure_mpa`]).
+//!    The model sees the rate of the pressure it is given, so with this
+//!    effect the inverse is approximate (see `tests/feedforward.rs` for the
+//!    measured round trip);
+//! 4. memory: the pressure on the minor loop
+//!    ([`ReversalStack::feedforward_pressure_mpa`]: its ends follow a
+//!    changing offset scale by Newton steps) or, without memory or with no
+//!    reversal remembered, on the branch: constraint pressure plus the
+//!    scaled offset ([`branch_pressure_mpa`], eqs. 25/26), the model's
+//!    closed-form direction;
+//! 5. the rate filter takes this period's constraint pressure.
+//!
+//! Fixed-size state, no allocation, no panic, bounded work: the creep
+//! inverse is a few operations, the shape inverse
+//! [`SHAPE_INVERSE_STEPS`](crate::effects::shape::SHAPE_INVERSE_STEPS)
+//! bisection steps, the memory's inverse as documented there (two branch
+//! inverses when a minor loop starts or closes, two Newton steps when only
+//! the rate effect's offset scale changed).
+//!
+//! ```
+//! use pam_core::effects::{Creep, Effects};
+//! use pam_core::feedforward::{InverseState, ModelInverse};
+//! use pam_core::{Branch, Coeffs, Params, Simulator, TrackerConfig};
+//!
+//! let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+//! let effects = Effects {
+//!     creep: Some(Creep { gain: 0.3, time_constant_s: 1.0 }),
+//!     ..Effects::NONE
+//! };
+//! let dt_s = 0.01;
+//! let inverse = ModelInverse::new(effects, dt_s).unwrap();
+//! let mut state = InverseState::<8>::default();
+//! let mut sim =
+//!     Simulator::<8>::new(coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, 200.0).unwrap();
+//! let model = coeffs.load_model(200.0).unwrap();
+//! for k in 0..200 {
+//!     // A step of the desired contraction: the creep's slow part is
+//!     // compensated by a pressure overshoot that decays.
+//!     let x_ref = if k < 50 { 0.05 } else { 0.12 };
+//!     let p = inverse.pressure_mpa(
+//!         &mut state, coeffs.params(), &model, 200.0, x_ref, Branch::Contraction, false,
+//!     );
+//!     let x = sim.step_on_branch(k as f32 * dt_s, p, 200.0, Branch::Contraction);
+//!     assert!((x - x_ref).abs() < 1e-4, "{k}: {x} vs {x_ref}");
+//! }
+//! ```
+
+use crate::branch::Branch;
+use crate::effects::memory::branch_pressure_mpa;
+use crate::effects::{
+    ConstraintShape, Creep, CreepState, Effects, NonLocalMemory, RateState, Reversal,
+    ReversalStack, MAX_OFFSET_SCALE, MAX_STEP_S,
+};
+use crate::error::Error;
+use crate::load_model::LoadModel;
+use crate::math::clamp;
+use crate::params::Params;
+
+/// Factor on the ellipse offset from the width and rate effects of
+/// `effects` at `load_n` and the filtered rate in `rate`, clamped to
+/// `[0, MAX_OFFSET_SCALE]`; 1 with neither.
+pub fn offset_scale(effects: &Effects, params: &Params, load_n: f32, rate: &RateState) -> f32 {
+    let mut m = 1.0;
+    if let Some(w) = &effects.width {
+        m *= w.scale(params, load_n);
+    }
+    if let Some(r) = &effects.rate {
+        m *= r.scale(rate);
+    }
+    clamp(m, 0.0, MAX_OFFSET_SCALE)
+}
+
+/// The constants of the inverse: the effects and what is derived from them
+/// for a fixed period (validated once, then infallible).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModelInverse {
+    effects: Effects,
+    /// Period the feedforward is called at, s.
+    dt_s: f32,
+    /// The creep lag's gain over one period ([`Creep::lag_gain`]).
+    creep_lag_gain: f32,
+}
+
+/// The feedforward's own state: the reversal memory of the pressures it
+/// commanded, its rate filter of them, its creep lag.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct InverseState<const N: usize> {
+    memory: MemoryState<N>,
+    rate: RateState,
+    creep: CreepState,
+    /// The offset scale of the last call, minus 1 (so that the default
+    /// state's 0 is the paper's scale).
+    scale_minus_one: f32,
+}
+
+impl ModelInverse {
+    /// The inverse of the model with `effects`, called every `dt_s` seconds.
+    /// Refuses effects that fail [`Effects::validate`] and a period that is
+    /// not finite and in `(0, MAX_STEP_S]`.
+    pub fn new(effects: Effects, dt_s: f32) -> Result<ModelInverse, Error> {
+        effects.validate()?;
+        if !dt_s.is_finite() {
+            return Err(Error::NonFinite("dt_s"));
+        }
+        if !(dt_s > 0.0 && dt_s <= MAX_STEP_S) {
+            return Err(Error::OutOfRange("dt_s", "must be in (0, MAX_STEP_S] s"));
+        }
+        Ok(ModelInverse {
+            effects,
+            dt_s,
+            creep_lag_gain: effects.creep.map_or(0.0, |c| c.lag_gain(dt_s)),
+        })
+    }
+
+    /// The effects inverted.
+    pub fn effects(&self) -> &Effects {
+        &self.effects
+    }
+
+    /// The period, s.
+    pub fn dt_s(&self) -> f32 {
+        self.dt_s
+    }
+
+    /// The pressure, in `[0, Pmax]`, at which the model with the effects
+    /// produces `contraction` (clamped to `model`'s stroke, NaN → `R_i`) on
+    /// `branch`, and the state's update for this period. `model` is the
+    /// active load's (at `load_n`, which sets the width and the shape);
+    /// `branch_switch`: the caller's branch changed on this period (a
+    /// reversal, pushed on the memory). Never NaN.
+    #[allow(clippy::too_many_arguments)]
+    pub fn pressure_mpa<const N: usize>(
+        &self,
+        state: &mut InverseState<N>,
+        params: &Params,
+        model: &LoadModel,
+        load_n: f32,
+        contraction: f32,
+        branch: Branch,
+        branch_switch: bool,
+    ) -> f32 {
+        let (root, max) = (model.root_contraction(), model.max_contraction());
+        let x_ref = clamp(contraction, root, max);
+        let x_static = match &self.effects.creep {
+            Some(c) => creep_input(c, &mut state.creep, x_ref, self.creep_lag_gain, root, max),
+            None => x_ref,
+        };
+        let x_model = match &self.effects.shape {
+            Some(s) => shape_inverse(s, params, model, load_n, x_static),
+            None => x_static,
+        };
+        let scale = if self.effects.width.is_some() || self.effects.rate.is_some() {
+            offset_scale(&self.effects, params, load_n, &state.rate)
+        } else {
+            1.0
+        };
+        state.scale_minus_one = scale - 1.0;
+        let p_mpa = match &self.effects.memory {
+            Some(m) => {
+                state
+                    .memory
+                    .feedforward_mpa(m, model, x_ref, x_model, branch, branch_switch, scale)
+            }
+            None => branch_pressure_mpa(model, x_model, branch, scale),
+        };
+        if let Some(r) = &self.effects.rate {
+            // The rate of the constraint pressure at the model contraction
+            // (eq. 21, the middle of the loop), not of the commanded one:
+            // the commanded pressure depends on the filtered rate through
+            // the offset scale, and at 1 kHz that loop's gain
+            // (offset × d(scale)/d(rate) / filter time) exceeds 1 for
+            // validated laws, so filtering the command oscillates. The
+            // constraint pressure follows the desired motion only.
+            state.rate.update(
+                model.constraint_pressure_mpa(x_model),
+                self.dt_s,
+                r.filter_time_s,
+            );
+        }
+        p_mpa
+    }
+}
+
+/// The creep's inverse clamped to the stroke, and the lag advanced with it.
+#[inline]
+fn creep_input(
+    c: &Creep,
+    state: &mut CreepState,
+    x_ref: f32,
+    lag_gain: f32,
+    root: f32,
+    max: f32,
+) -> f32 {
+    // Clamp: the static curve cannot leave the stroke, so a step larger
+    // than the creep can deliver at once is commanded as far as it goes.
+    let u = clamp(c.static_contraction(state, x_ref, lag_gain), root, max);
+    c.advance(state, u, lag_gain);
+    u
+}
+
+#[inline]
+fn shape_inverse(
+    s: &ConstraintShape,
+    params: &Params,
+    model: &LoadModel,
+    load_n: f32,
+    x: f32,
+) -> f32 {
+    s.at_load(params, load_n).model_contraction(model, x)
+}
+
+impl<const N: usize> InverseState<N> {
+    /// Forget everything: memory, rate filter, creep lag (a restart after a
+    /// fault: the safe state vents or holds the muscle, so none of it
+    /// applies any more).
+    pub fn reset(&mut self) {
+        *self = InverseState::default();
+    }
+
+    /// The factor on the ellipse offset (width and rate) the last call
+    /// used; 1 before the first.
+    pub fn offset_scale(&self) -> f32 {
+        1.0 + self.scale_minus_one
+    }
+
+    /// Forget the reversal memory (its turning points belong to the old
+    /// load's loop after a load switch).
+    pub fn clear_memory(&mut self) {
+        self.memory.clear();
+    }
+
+    /// The memory's reversal points `(pressure, model contraction)`, oldest
+    /// first.
+    pub fn reversals(&self) -> &[Reversal] {
+        self.memory.stack.points()
+    }
+
+    /// The last period computed a minor loop's ends (two branch inverses)
+    /// instead of using the cached loop.
+    pub fn rebuilt_loop(&self) -> bool {
+        self.memory.rebuilt_loop
+    }
+}
+
+/// The memory part of the feedforward: the reversal points `(feedforward
+/// pressure, model contraction)` and the extreme of the current sweep (the
+/// next reversal's turning point).
+#[derive(Clone, Copy, Debug, Default)]
+struct MemoryState<const N: usize> {
+    stack: ReversalStack<N>,
+    extreme: Option<Reversal>,
+    /// The desired (output) contraction at `extreme`: the set-point backs
+    /// off from the extreme in its own terms (creep makes the model
+    /// contraction move back and forth under a monotone set-point).
+    extreme_ref: f32,
+    /// The memory with `extreme` pushed, kept while the set-point backs off
+    /// from it (so its minor loop stays cached); valid while `trial_valid`.
+    trial: ReversalStack<N>,
+    trial_valid: bool,
+    /// The last feedforward computed a minor loop's ends (two branch
+    /// inverses) instead of using the cached loop.
+    rebuilt_loop: bool,
+}
+
+impl<const N: usize> MemoryState<N> {
+    fn clear(&mut self) {
+        self.stack.clear();
+        self.extreme = None;
+        self.trial_valid = false;
+        self.rebuilt_loop = false;
+    }
+
+    /// The feedforward pressure that holds `x_model` on the memory's curve
+    /// for `branch`, then the memory's update for this sample; `x_ref` is
+    /// the desired contraction `x_model` was inverted from (creep and shape).
+    ///
+    /// A mode tracker switches the branch only once the set-point has moved
+    /// its direction deadband back from the sweep's extreme. In between,
+    /// following the old branch backwards and then changing curve at the
+    /// switch would jump by the two curves' slope difference times the
+    /// deadband (up to 0.02 MPa where a minor loop is steep). So while the
+    /// set-point is back from the extreme the feedforward already follows
+    /// the curve the reversal will start, a trial copy of the memory with
+    /// the extreme pushed, on the opposite branch; at the switch the real
+    /// memory takes the same push and the feedforward continues without a
+    /// step. If the set-point turns again first, that curve passes through
+    /// the extreme, so the return to the old sweep is continuous too.
+    #[allow(clippy::too_many_arguments)]
+    fn feedforward_mpa(
+        &mut self,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        x_ref: f32,
+        x_model: f32,
+        branch: Branch,
+        branch_switch: bool,
+        offset_scale: f32,
+    ) -> f32 {
+        self.rebuilt_loop = false;
+        if branch_switch {
+            if let Some(r) = self.extreme.take() {
+                self.stack.push(r);
+            }
+        }
+        if let Some(e) = self.extreme {
+            let backing_off = match branch {
+                Branch::Contraction => x_ref < self.extreme_ref,
+                Branch::Expansion => x_ref > self.extreme_ref,
+            };
+            if backing_off {
+                if !self.trial_valid {
+                    self.trial = self.stack;
+                    self.trial.push(e);
+                    self.trial_valid = true;
+                }
+                self.rebuilt_loop = !self.trial.has_cached_loop();
+                return self.trial.feedforward_pressure_mpa(
+                    params,
+                    model,
+                    x_model,
+                    branch.opposite(),
+                    offset_scale,
+                );
+            }
+        }
+        // The memory moves on (wipe-out, new extreme): the trial is stale.
+        self.trial_valid = false;
+        let before = self.stack.points().len();
+        let cached = self.stack.has_cached_loop();
+        let p_mpa = if self.stack.points().is_empty() {
+            // No reversal remembered: `x(p)` is the branch inverse, whose
+            // inverse is the forward model, eqs. (25)/(26).
+            branch_pressure_mpa(model, x_model, branch, offset_scale)
+        } else {
+            self.stack
+                .feedforward_pressure_mpa(params, model, x_model, branch, offset_scale)
+        };
+        self.stack.wipe_out(p_mpa, branch);
+        // A loop's ends were computed unless the cached loop served (a
+        // closed loop, popped here, was evaluated afresh).
+        self.rebuilt_loop = before > 0 && (!cached || self.stack.points().len() < before);
+        // At or beyond the sweep's extreme: the turning point of the next reversal.
+        self.extreme = Some(Reversal {
+            pressure_mpa: p_mpa,
+            contraction: x_model,
+        });
+        self.extreme_ref = x_ref;
+        p_mpa
+    }
+}
