@@ -302,6 +302,7 @@ mod tests {
                 scale_per_mpa_per_s: 0.5,
                 exponent: 1.0,
                 filter_time_s: 0.1,
+                max_rate_mpa_per_s: 1.0,
             }),
             ..effects
         };

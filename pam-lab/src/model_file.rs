@@ -199,11 +199,12 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
     }));
     let rate = opt(effects.rate.map(|r| {
         format!(
-            "pam_core::effects::RateDependence {{\n        scale_at_rest: {},\n        scale_per_mpa_per_s: {},\n        exponent: {},\n        filter_time_s: {},\n    }}",
+            "pam_core::effects::RateDependence {{\n        scale_at_rest: {},\n        scale_per_mpa_per_s: {},\n        exponent: {},\n        filter_time_s: {},\n        max_rate_mpa_per_s: {},\n    }}",
             f(r.scale_at_rest),
             f(r.scale_per_mpa_per_s),
             f(r.exponent),
-            f(r.filter_time_s)
+            f(r.filter_time_s),
+            f(r.max_rate_mpa_per_s)
         )
     }));
     let creep = opt(effects.creep.map(|c| {
