@@ -36,6 +36,12 @@ fn all_effects() -> Effects {
             tilt: -0.2,
             bulge_per_step: 0.05,
             tilt_per_step: 0.0,
+            root_shift: 0.01,
+            end_shift: 0.02,
+            root_shift_per_step: 0.01,
+            end_shift_per_step: -0.01,
+            root_shift_per_step_sq: -0.01,
+            end_shift_per_step_sq: 0.02,
         }),
     }
 }

@@ -223,11 +223,17 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
     }));
     let shape = opt(effects.shape.map(|c| {
         format!(
-            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n    }}",
+            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n        root_shift: {},\n        end_shift: {},\n        root_shift_per_step: {},\n        end_shift_per_step: {},\n        root_shift_per_step_sq: {},\n        end_shift_per_step_sq: {},\n    }}",
             f(c.bulge),
             f(c.tilt),
             f(c.bulge_per_step),
-            f(c.tilt_per_step)
+            f(c.tilt_per_step),
+            f(c.root_shift),
+            f(c.end_shift),
+            f(c.root_shift_per_step),
+            f(c.end_shift_per_step),
+            f(c.root_shift_per_step_sq),
+            f(c.end_shift_per_step_sq)
         )
     }));
     src.push_str(&format!(

@@ -59,7 +59,7 @@ impl EffectKind {
     pub fn parameter_count(self) -> usize {
         match self {
             EffectKind::RateDependence => 5,
-            EffectKind::ConstraintShape => 4,
+            EffectKind::ConstraintShape => 8,
             _ => 2,
         }
     }
@@ -70,7 +70,7 @@ impl EffectKind {
     fn free_count(self) -> usize {
         match self {
             EffectKind::RateDependence => 4,
-            EffectKind::ConstraintShape => 4,
+            EffectKind::ConstraintShape => 8,
             _ => 2,
         }
     }
@@ -121,7 +121,7 @@ impl EffectKind {
                 vec![logit(0.1 / 0.95), 5.0f64.ln()],
             ],
             EffectKind::LoadDependentWidth => vec![vec![logit(1.0 / 4.0), 0.0]],
-            EffectKind::ConstraintShape => vec![vec![0.0; 4]],
+            EffectKind::ConstraintShape => vec![vec![0.0; 8]],
         }
     }
 
@@ -171,14 +171,26 @@ impl EffectKind {
                 })
             }
             EffectKind::ConstraintShape => {
-                // Each within half the slope limit: their sum within it.
-                let half = 0.5 * f64::from(MAX_SHAPE_SLOPE);
-                // (`at_load` keeps the sum within it at every load.)
+                // Bulge and tilt within a third of the slope limit each, the
+                // stroke ends' shifts' load terms within a sixth each
+                // (`at_load` keeps the sum within the limit at every load).
+                // The shifts at the minimum load stay zero (the base's
+                // stroke ends); their linear load terms overlap the base's
+                // regressions of the stroke ends, but the joint refit does
+                // not find those where the ends also bend with load.
+                let third = f64::from(MAX_SHAPE_SLOPE) / 3.0;
+                let sixth = f64::from(MAX_SHAPE_SLOPE) / 6.0;
                 e.shape = Some(ConstraintShape {
-                    bulge: (half * t(0).tanh()) as f32,
-                    tilt: (half * t(1).tanh()) as f32,
-                    bulge_per_step: (half * t(2).tanh()) as f32,
-                    tilt_per_step: (half * t(3).tanh()) as f32,
+                    bulge: (third * t(0).tanh()) as f32,
+                    tilt: (third * t(1).tanh()) as f32,
+                    bulge_per_step: (third * t(2).tanh()) as f32,
+                    tilt_per_step: (third * t(3).tanh()) as f32,
+                    root_shift: 0.0,
+                    end_shift: 0.0,
+                    root_shift_per_step: (sixth * t(4).tanh()) as f32,
+                    end_shift_per_step: (sixth * t(5).tanh()) as f32,
+                    root_shift_per_step_sq: (sixth * t(6).tanh()) as f32,
+                    end_shift_per_step_sq: (sixth * t(7).tanh()) as f32,
                 })
             }
         }
@@ -395,24 +407,48 @@ pub(super) fn evaluate_candidate(
     // with the effect on (an effect the base fit could not see biases it:
     // creep lags every ramp the static curve was fitted to), then the
     // effect's parameters again on that base.
-    let theta = fit_effect(model.1, kind.starts(setup.regimes.max_ramp_rate_mpa_per_s));
-    let (base_params, coeffs) = refit_base(
-        setup,
-        model.0,
-        model.1,
-        kind.apply(current, &theta),
-        cfg.refit_iterations,
-    );
-    let theta = if cfg.refit_iterations > 0 {
-        fit_effect(coeffs, vec![theta])
+    // The static shape trades off against the base's stroke ends and load
+    // regressions, which the correction's end shifts overlap: it gets
+    // a second alternation.
+    let alternations = if kind == EffectKind::ConstraintShape {
+        2
     } else {
-        theta
+        1
     };
+    let mut theta = fit_effect(model.1, kind.starts(setup.regimes.max_ramp_rate_mpa_per_s));
+    let (mut base_params, mut coeffs) = (model.0, model.1);
+    for _ in 0..alternations {
+        (base_params, coeffs) = refit_base(
+            setup,
+            base_params,
+            coeffs,
+            kind.apply(current, &theta),
+            cfg.refit_iterations,
+        );
+        if cfg.refit_iterations > 0 {
+            theta = fit_effect(coeffs, vec![theta]);
+        }
+    }
     let effects = kind.apply(current, &theta);
     let n_params = current_params + kind.parameter_count();
-    let (errors, _) = setup.errors(&coeffs, effects, n_params);
+    let (errors, res) = setup.errors(&coeffs, effects, n_params);
     let improvement = 1.0 - errors.rms_heldout / current_errors.rms_heldout;
-    let bic_drop = current_errors.bic - errors.bic;
+    // The evidence's independent samples: the base residual's correlation
+    // length counts the systematic error as the correlated part, and where
+    // that error is the effect itself (a static-shape error runs along
+    // whole sweeps) the candidate's residual is correlated over far fewer
+    // samples. Both models are compared over the shorter of the two
+    // lengths (one count for both, as a BIC needs).
+    let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| res[i]).collect();
+    let cand_corr = crate::stats::correlation_length(
+        &train_res,
+        setup.noise_contraction,
+        2 * super::PRESSURE_MEDIAN_HALF_WIDTH + 1,
+    );
+    let corr = setup.corr_len.min(cand_corr);
+    let n_train = setup.train_idx.len();
+    let bic_drop = super::evaluate::bic(current_errors.rms_train, n_train, corr, current_params)
+        - super::evaluate::bic(errors.rms_train, n_train, corr, n_params);
     let regime_rms = |e: &ModelErrors| -> f64 {
         match kind {
             EffectKind::LoadDependentWidth => {

@@ -241,6 +241,7 @@ pub fn diagnose_with_progress(
         regimes,
         branches,
         corr_len: 1.0,
+        noise_contraction: noise.contraction,
         stroke_bin: evaluate::stroke_bins(samples),
     };
     let base_res = setup.residuals(Effects::NONE);
