@@ -361,6 +361,20 @@ pub struct CandidateResult {
     pub coeffs: Coeffs,
 }
 
+impl CandidateResult {
+    /// Its held-out cut times its signature cut (the evidence rule's two
+    /// located measures), for ranking the candidates that earn their place.
+    pub fn located_gain(&self) -> f64 {
+        let signature_cut = 1.0 - self.signature.rms_after / self.signature.rms_before;
+        let g = self.improvement.max(0.0) * signature_cut.max(0.0);
+        if g.is_finite() {
+            g
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Whether the improvement sits in the regime the effect explains.
 #[derive(Clone, Debug, Serialize)]
 pub struct Signature {
