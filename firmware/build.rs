@@ -56,6 +56,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                     tilt: 0.0,
                     bulge_per_step: 0.0,
                     tilt_per_step: 0.0,
+                    ..ConstraintShape::NEUTRAL
                 }),
             };
             pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects).to_vec()

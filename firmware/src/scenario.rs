@@ -147,6 +147,7 @@ pub const EFFECTS_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
         tilt: 0.0,
         bulge_per_step: 0.0,
         tilt_per_step: 0.0,
+        ..pam_core::effects::ConstraintShape::NEUTRAL
     }),
 };
 

@@ -46,6 +46,12 @@ fuzz_target!(|data: &[u8]| {
             tilt: f.near(-0.2, 2.0),
             bulge_per_step: f.near(0.05, 2.0),
             tilt_per_step: f.near(0.05, 2.0),
+            root_shift: f.near(0.0, 2.0),
+            end_shift: f.near(0.0, 2.0),
+            root_shift_per_step: f.near(0.01, 2.0),
+            end_shift_per_step: f.near(0.01, 2.0),
+            root_shift_per_step_sq: f.near(0.01, 2.0),
+            end_shift_per_step_sq: f.near(0.01, 2.0),
         }),
     };
     let config = f.tracker_config();

@@ -46,6 +46,7 @@ fuzz_target!(|data: &[u8]| {
             tilt: f.near(-0.2, 2.0),
             bulge_per_step: f.near(0.05, 2.0),
             tilt_per_step: f.near(0.05, 2.0),
+            ..pam_core::effects::ConstraintShape::NEUTRAL
         }),
     };
     let dt_s = f.near(1e-3, 2.0);

@@ -30,7 +30,9 @@
 //! | 92 | 8 | creep: `gain`, `time_constant_s` |
 //! | 100 | 8 | load-dependent width: `scale_at_min_load`, `scale_per_step` |
 //! | 108 | 16 | constraint shape: `bulge`, `tilt`, `bulge_per_step`, `tilt_per_step` |
-//! | 124 | 4 | CRC-32 of bytes 0..124 |
+//! | 124 | 4 | rate dependence: `max_rate_mpa_per_s` (the saturation rate) |
+//! | 128 | 24 | constraint shape: `root_shift`, `end_shift`, `root_shift_per_step`, `end_shift_per_step`, `root_shift_per_step_sq`, `end_shift_per_step_sq` |
+//! | 152 | 4 | CRC-32 of bytes 0..152 |
 //!
 //! An effect whose flag is clear has its fields written as zeros, and they
 //! must be zero to decode (one encoding per model). [`decode_model`] reads
@@ -66,7 +68,7 @@ pub const FLAG_SHAPE: u32 = 1 << 4;
 /// Every flag this crate knows.
 pub const KNOWN_FLAGS: u32 = FLAG_MEMORY | FLAG_RATE | FLAG_CREEP | FLAG_WIDTH | FLAG_SHAPE;
 /// `f32` fields of the effects in a version-2 payload.
-pub const EFFECT_FIELDS: usize = 14;
+pub const EFFECT_FIELDS: usize = 21;
 /// Version-2 payload length, bytes: parameters, flags, effect fields.
 pub const PAYLOAD_V2_LEN: usize = 4 * PAYLOAD_FIELDS + 4 + 4 * EFFECT_FIELDS;
 /// Version-2 blob length, bytes.
@@ -203,6 +205,7 @@ fn effect_fields(e: &Effects) -> (u32, [f32; EFFECT_FIELDS]) {
         f[3] = r.scale_per_mpa_per_s;
         f[4] = r.exponent;
         f[5] = r.filter_time_s;
+        f[14] = r.max_rate_mpa_per_s;
     }
     if let Some(c) = e.creep {
         flags |= FLAG_CREEP;
@@ -220,6 +223,12 @@ fn effect_fields(e: &Effects) -> (u32, [f32; EFFECT_FIELDS]) {
         f[11] = c.tilt;
         f[12] = c.bulge_per_step;
         f[13] = c.tilt_per_step;
+        f[15] = c.root_shift;
+        f[16] = c.end_shift;
+        f[17] = c.root_shift_per_step;
+        f[18] = c.end_shift_per_step;
+        f[19] = c.root_shift_per_step_sq;
+        f[20] = c.end_shift_per_step_sq;
     }
     (flags, f)
 }
@@ -242,11 +251,12 @@ fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> 
             shape: f[0],
             merge_span: f[1],
         }),
-        rate: on(FLAG_RATE, &f[2..6])?.then_some(RateDependence {
+        rate: on(FLAG_RATE, &[f[2], f[3], f[4], f[5], f[14]])?.then_some(RateDependence {
             scale_at_rest: f[2],
             scale_per_mpa_per_s: f[3],
             exponent: f[4],
             filter_time_s: f[5],
+            max_rate_mpa_per_s: f[14],
         }),
         creep: on(FLAG_CREEP, &f[6..8])?.then_some(Creep {
             gain: f[6],
@@ -256,11 +266,23 @@ fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> 
             scale_at_min_load: f[8],
             scale_per_step: f[9],
         }),
-        shape: on(FLAG_SHAPE, &f[10..14])?.then_some(ConstraintShape {
+        shape: on(
+            FLAG_SHAPE,
+            &[
+                f[10], f[11], f[12], f[13], f[15], f[16], f[17], f[18], f[19], f[20],
+            ],
+        )?
+        .then_some(ConstraintShape {
             bulge: f[10],
             tilt: f[11],
             bulge_per_step: f[12],
             tilt_per_step: f[13],
+            root_shift: f[15],
+            end_shift: f[16],
+            root_shift_per_step: f[17],
+            end_shift_per_step: f[18],
+            root_shift_per_step_sq: f[19],
+            end_shift_per_step_sq: f[20],
         }),
     };
     Ok(e)
@@ -415,6 +437,7 @@ mod tests {
                 scale_per_mpa_per_s: 0.8,
                 exponent: 0.5,
                 filter_time_s: 0.19,
+                max_rate_mpa_per_s: 0.3,
             }),
             creep: Some(Creep {
                 gain: 0.2,
@@ -429,6 +452,12 @@ mod tests {
                 tilt: -0.05,
                 bulge_per_step: 0.02,
                 tilt_per_step: 0.01,
+                root_shift: 0.01,
+                end_shift: -0.02,
+                root_shift_per_step: 0.005,
+                end_shift_per_step: -0.006,
+                root_shift_per_step_sq: 0.003,
+                end_shift_per_step_sq: -0.004,
             }),
         }
     }

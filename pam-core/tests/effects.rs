@@ -21,6 +21,7 @@ fn all_effects() -> Effects {
             // Not a sqrt fast path: the `powf` one.
             exponent: 0.7,
             filter_time_s: 0.1,
+            max_rate_mpa_per_s: 2.0,
         }),
         creep: Some(Creep {
             gain: 0.3,
@@ -35,6 +36,12 @@ fn all_effects() -> Effects {
             tilt: -0.2,
             bulge_per_step: 0.05,
             tilt_per_step: 0.0,
+            root_shift: 0.01,
+            end_shift: 0.02,
+            root_shift_per_step: 0.01,
+            end_shift_per_step: -0.01,
+            root_shift_per_step_sq: -0.01,
+            end_shift_per_step_sq: 0.02,
         }),
     }
 }
@@ -183,6 +190,7 @@ proptest! {
             scale_per_mpa_per_s: 2.0,
             exponent: [0.5, 0.75, 1.0, 1.3][usize::from(exponent_pick) % 4],
             filter_time_s: 0.2,
+            max_rate_mpa_per_s: pam_core::effects::rate::MAX_RATE_MPA_PER_S,
         });
         let effects = Effects { memory: Some(memory), width, rate, ..Effects::NONE };
         let mut sim = Simulator::<3>::new(coeffs(), effects, TrackerConfig::DEFAULT_PRESSURE, 200.0).unwrap();
@@ -282,8 +290,8 @@ proptest! {
     fn effect_validation_never_panics(a in any_f32(), b in any_f32()) {
         let _ = NonLocalMemory::with_shape(a).validate();
         let _ = NonLocalMemory { shape: 1.0, merge_span: a }.validate();
-        let _ = RateDependence { scale_at_rest: a, scale_per_mpa_per_s: b, exponent: 1.0, filter_time_s: 0.3 }.validate();
-        let _ = RateDependence { scale_at_rest: 1.0, scale_per_mpa_per_s: 1.0, exponent: a, filter_time_s: b }.validate();
+        let _ = RateDependence { scale_at_rest: a, scale_per_mpa_per_s: b, exponent: 1.0, filter_time_s: 0.3, max_rate_mpa_per_s: 1.0 }.validate();
+        let _ = RateDependence { scale_at_rest: 1.0, scale_per_mpa_per_s: 1.0, exponent: a, filter_time_s: b, max_rate_mpa_per_s: a }.validate();
         let _ = Creep { gain: a, time_constant_s: b }.validate();
         let _ = LoadDependentWidth { scale_at_min_load: a, scale_per_step: b }.validate();
     }

@@ -212,11 +212,12 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
     }));
     let rate = opt(effects.rate.map(|r| {
         format!(
-            "pam_core::effects::RateDependence {{\n        scale_at_rest: {},\n        scale_per_mpa_per_s: {},\n        exponent: {},\n        filter_time_s: {},\n    }}",
+            "pam_core::effects::RateDependence {{\n        scale_at_rest: {},\n        scale_per_mpa_per_s: {},\n        exponent: {},\n        filter_time_s: {},\n        max_rate_mpa_per_s: {},\n    }}",
             f(r.scale_at_rest),
             f(r.scale_per_mpa_per_s),
             f(r.exponent),
-            f(r.filter_time_s)
+            f(r.filter_time_s),
+            f(r.max_rate_mpa_per_s)
         )
     }));
     let creep = opt(effects.creep.map(|c| {
@@ -235,11 +236,17 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
     }));
     let shape = opt(effects.shape.map(|c| {
         format!(
-            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n    }}",
+            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n        root_shift: {},\n        end_shift: {},\n        root_shift_per_step: {},\n        end_shift_per_step: {},\n        root_shift_per_step_sq: {},\n        end_shift_per_step_sq: {},\n    }}",
             f(c.bulge),
             f(c.tilt),
             f(c.bulge_per_step),
-            f(c.tilt_per_step)
+            f(c.tilt_per_step),
+            f(c.root_shift),
+            f(c.end_shift),
+            f(c.root_shift_per_step),
+            f(c.end_shift_per_step),
+            f(c.root_shift_per_step_sq),
+            f(c.end_shift_per_step_sq)
         )
     }));
     src.push_str(&format!(

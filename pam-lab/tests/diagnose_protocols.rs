@@ -5,7 +5,8 @@
 //!   sinusoidal cycles, decaying oscillations with nested minor loops,
 //!   random reversals, steps, loads 80–480 N) for every single-effect plant;
 //! * two effects at once (load-dependent width with creep, memory with
-//!   rate dependence), under the examples' protocol.
+//!   rate dependence), under the examples' protocol;
+//! * the Tondu–Lopez muscle (static shape and memory) under both.
 //!
 //! Each diagnosis takes about 10 s in a release build and over a minute in
 //! a debug one, so these run in release builds only
@@ -112,4 +113,35 @@ fn width_and_creep_at_once_are_both_named() {
 #[cfg_attr(debug_assertions, ignore)]
 fn memory_and_rate_at_once_are_both_named() {
     both_named(Plant::MemoryAndRate);
+}
+
+/// The Tondu–Lopez muscle (a static curve outside the cubic family, with
+/// the memory plant's friction): the static shape is named first, then the
+/// memory, and the error above the noise is cut by a fifth at least.
+fn tondu_lopez(name: &str, csv: String) {
+    let r = run(name, csv);
+    assert_eq!(
+        r.effects_added.first().copied(),
+        Some("constraint_shape"),
+        "{:?}",
+        r.effects_added
+    );
+    let mut got = r.effects_added.clone();
+    let mut want = Plant::TonduLopez.expected_effects().to_vec();
+    got.sort_unstable();
+    want.sort_unstable();
+    assert_eq!(got, want);
+    assert!(r.share_removed() >= 0.2, "{}", r.share_removed());
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn tondu_lopez_static_shape_is_named_under_the_first_protocol() {
+    tondu_lopez("a_tl", hidden_plants::csv(Plant::TonduLopez, 1, true));
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn tondu_lopez_static_shape_is_named_under_the_second_protocol() {
+    tondu_lopez("b_tl", hidden_plants::csv_b(Plant::TonduLopez, 1));
 }

@@ -558,6 +558,7 @@ fn main() -> ! {
             tilt: 0.1,
             bulge_per_step: 0.02,
             tilt_per_step: 0.0,
+            ..pam_core::effects::ConstraintShape::NEUTRAL
         }),
         ..Effects::NONE
     };

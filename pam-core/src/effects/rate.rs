@@ -1,9 +1,14 @@
 //! Rate dependence: the loop widens with the pressure rate (a viscous
 //! contribution the paper's rate-independent ellipse lacks).
 //!
-//! `be(ṗ) = be · (scale_at_rest + scale_per_mpa_per_s · (|ṗ|/ṗ_ref)^n)`,
+//! `be(ṗ) = be · (scale_at_rest + scale_per_mpa_per_s · (min(|ṗ|, ṗ_max)/ṗ_ref)^n)`,
 //! `ṗ_ref` = 1 MPa/s, where `ṗ` is the pressure rate through a first-order
-//! low-pass of time constant `filter_time_s` (default
+//! low-pass of time constant `filter_time_s` and `ṗ_max` is
+//! `max_rate_mpa_per_s`, the rate where the law saturates. A pressure step
+//! is a rate far above any ramp; without the saturation the loop would
+//! blow up at every step. A fit sets `ṗ_max` to the fastest ramp its data
+//! shows, so the law never widens a loop beyond what was measured
+//! (default
 //! [`RATE_FILTER_TIME_S`]: the raw difference of a 50 Hz signal with
 //! 0.001 MPa noise is ±0.07 MPa/s of noise; 0.3 s brings it to about
 //! ±0.01 MPa/s).
@@ -48,6 +53,9 @@ pub struct RateDependence {
     /// Time constant of the pressure-rate filter, s, in
     /// `[0, MAX_RATE_FILTER_TIME_S]` (0: the raw difference).
     pub filter_time_s: f32,
+    /// Filtered rate above which the factor stops growing, MPa/s, in
+    /// `(0, MAX_RATE_MPA_PER_S]`: the law is bounded by its value here.
+    pub max_rate_mpa_per_s: f32,
 }
 
 /// Filter state of [`RateDependence`].
@@ -66,22 +74,32 @@ impl RateDependence {
         scale_per_mpa_per_s: 0.0,
         exponent: 1.0,
         filter_time_s: RATE_FILTER_TIME_S,
+        max_rate_mpa_per_s: MAX_RATE_MPA_PER_S,
     };
 
-    /// The linear law (`n` = 1) with the default filter.
+    /// The linear law (`n` = 1) with the default filter, saturating at
+    /// [`MAX_RATE_MPA_PER_S`].
     pub const fn linear(scale_at_rest: f32, scale_per_mpa_per_s: f32) -> RateDependence {
         RateDependence {
             scale_at_rest,
             scale_per_mpa_per_s,
             exponent: 1.0,
             filter_time_s: RATE_FILTER_TIME_S,
+            max_rate_mpa_per_s: MAX_RATE_MPA_PER_S,
         }
+    }
+
+    /// The largest factor the law gives (at or above
+    /// `max_rate_mpa_per_s`), before the clamp to `MAX_OFFSET_SCALE`.
+    pub fn max_scale(&self) -> f32 {
+        self.scale_at_rest + self.scale_per_mpa_per_s * self.rate_term(self.max_rate_mpa_per_s)
     }
 
     /// Finite; factor at rest in `[0, MAX_OFFSET_SCALE]`; growth in
     /// `[0, 100]` at 1 MPa/s (a loop cannot narrow with speed in this model);
     /// exponent in [`RATE_EXPONENT_RANGE`]; filter time constant in
-    /// `[0, MAX_RATE_FILTER_TIME_S]` s.
+    /// `[0, MAX_RATE_FILTER_TIME_S]` s; saturation rate in
+    /// `(0, MAX_RATE_MPA_PER_S]`.
     pub fn validate(&self) -> Result<(), Error> {
         if !self.scale_at_rest.is_finite() {
             return Err(Error::NonFinite("rate.scale_at_rest"));
@@ -94,6 +112,15 @@ impl RateDependence {
         }
         if !self.filter_time_s.is_finite() {
             return Err(Error::NonFinite("rate.filter_time_s"));
+        }
+        if !self.max_rate_mpa_per_s.is_finite() {
+            return Err(Error::NonFinite("rate.max_rate_mpa_per_s"));
+        }
+        if !(self.max_rate_mpa_per_s > 0.0 && self.max_rate_mpa_per_s <= MAX_RATE_MPA_PER_S) {
+            return Err(Error::OutOfRange(
+                "rate.max_rate_mpa_per_s",
+                "must be in (0, MAX_RATE_MPA_PER_S] MPa/s",
+            ));
         }
         let (n_lo, n_hi) = RATE_EXPONENT_RANGE;
         if !(self.exponent >= n_lo && self.exponent <= n_hi) {
@@ -123,11 +150,20 @@ impl RateDependence {
         Ok(())
     }
 
-    /// Factor on the ellipse offset for the filtered rate in `state`,
-    /// clamped to `[0, MAX_OFFSET_SCALE]`.
+    /// Factor on the ellipse offset for the filtered rate in `state` (its
+    /// magnitude saturated at `max_rate_mpa_per_s`), clamped to
+    /// `[0, MAX_OFFSET_SCALE]`.
     pub fn scale(&self, state: &RateState) -> f32 {
+        let r = state.rate_mpa_per_s.abs();
+        // `min` that keeps a NaN saturation bound (refused by `validate`)
+        // from passing an unbounded rate.
+        let r = if r <= self.max_rate_mpa_per_s {
+            r
+        } else {
+            self.max_rate_mpa_per_s
+        };
         clamp(
-            self.scale_at_rest + self.scale_per_mpa_per_s * self.rate_term(state.rate_mpa_per_s),
+            self.scale_at_rest + self.scale_per_mpa_per_s * self.rate_term(r),
             0.0,
             MAX_OFFSET_SCALE,
         )
@@ -267,6 +303,55 @@ mod tests {
     }
 
     #[test]
+    fn a_pressure_step_does_not_blow_the_factor_up() {
+        // 100 Hz, a ramp at 0.2 MPa/s, then a 0.3 MPa step in one sample
+        // (a raw rate of 30 MPa/s, clamped to 5), then a hold.
+        let dt = 0.01;
+        let bounded = RateDependence {
+            exponent: 0.5,
+            filter_time_s: 0.05,
+            max_rate_mpa_per_s: 0.2,
+            ..RateDependence::linear(0.6, 2.2)
+        };
+        let unbounded = RateDependence {
+            max_rate_mpa_per_s: MAX_RATE_MPA_PER_S,
+            ..bounded
+        };
+        assert_eq!(bounded.validate(), Ok(()));
+        let mut s = RateState::default();
+        let mut p = 0.1f32;
+        let (mut ramp_max, mut step_max, mut step_max_unbounded) = (0.0f32, 0.0f32, 0.0f32);
+        for k in 0..600 {
+            if k < 300 {
+                p += 0.2 * dt;
+            } else if k == 300 {
+                p += 0.3;
+            }
+            s.update(p, dt, bounded.filter_time_s);
+            if k < 300 {
+                ramp_max = ramp_max.max(bounded.scale(&s));
+            } else {
+                step_max = step_max.max(bounded.scale(&s));
+                step_max_unbounded = step_max_unbounded.max(unbounded.scale(&s));
+            }
+        }
+        // The ramp reaches the saturation; the step goes no further.
+        let top = 0.6 + 2.2 * 0.2f32.sqrt();
+        assert!((bounded.max_scale() - top).abs() < 1e-5);
+        assert!((ramp_max - top).abs() < 0.01 * top, "{ramp_max} vs {top}");
+        assert!(step_max <= top + 1e-5, "{step_max} vs {top}");
+        // Without the bound the same step takes the factor 75 % above that
+        // of the fastest ramp (2.8 against 1.58).
+        assert!(step_max_unbounded > 1.75 * top, "{step_max_unbounded}");
+        // After the step, at rest again.
+        assert!(
+            (bounded.scale(&s) - 0.6).abs() < 1e-3,
+            "{}",
+            bounded.scale(&s)
+        );
+    }
+
+    #[test]
     fn bad_samples_are_ignored() {
         let mut s = RateState::default();
         s.update(0.1, 0.02, RATE_FILTER_TIME_S);
@@ -288,6 +373,17 @@ mod tests {
             assert!(
                 RateDependence { exponent: n, ..ok }.validate().is_err(),
                 "{n}"
+            );
+        }
+        for m in [0.0f32, -0.1, MAX_RATE_MPA_PER_S + 0.01, f32::NAN] {
+            assert!(
+                RateDependence {
+                    max_rate_mpa_per_s: m,
+                    ..ok
+                }
+                .validate()
+                .is_err(),
+                "{m}"
             );
         }
         for tau in [-0.01f32, 10.01, f32::NAN] {

@@ -7,14 +7,21 @@
 //! where along the stroke the muscle is, the same on the contraction and
 //! expansion branches. This effect maps the model's contraction `x` to
 //!
-//! `x' = R + S·(u + u·(1 − u)·(bulge + tilt·(2u − 1)))`, `u = (x − R)/S`,
+//! `x' = R + S·(u + u·(1 − u)·(bulge + tilt·(2u − 1)) + (1 − u)·root_shift + u·end_shift)`,
+//! `u = (x − R)/S`,
 //!
 //! with `R`, `S = Rx − R` the active load's stroke (eqs. 17–19), so the
-//! correction follows each load of the family in proportion to its stroke,
-//! vanishes at both stroke ends, and is strictly increasing in `x` whenever
-//! `|bulge| + |tilt| < 1` (the derivative of `u·(1 − u)·(a + b·(2u − 1))`
-//! is within `±(|a| + |b|)` on `[0, 1]`). Validation keeps
-//! `|bulge| + |tilt| ≤ MAX_SHAPE_SLOPE`, so the map always has an inverse
+//! correction follows each load of the family in proportion to its stroke.
+//! The bulge and tilt vanish at both stroke ends and change linearly with
+//! load; the shifts move the stroke ends themselves, quadratic in load
+//! (the paper's stroke ends are linear in load, eqs. 17–18; a muscle whose
+//! ends bend with load, as the Tondu–Lopez law's do, leaves an error at the
+//! ends of the stroke that grows and changes sign along the load family).
+//! The map is strictly increasing in `x` whenever
+//! `|bulge| + |tilt| + |end_shift − root_shift| < 1` (the derivative of
+//! `u·(1 − u)·(a + b·(2u − 1))` is within `±(|a| + |b|)` on `[0, 1]`).
+//! Validation and [`ConstraintShape::at_load`] keep that sum within
+//! `MAX_SHAPE_SLOPE`, so the map always has an inverse
 //! ([`ConstraintShape::model_contraction`]) for a feedforward.
 
 use crate::error::Error;
@@ -44,6 +51,21 @@ pub struct ConstraintShape {
     pub bulge_per_step: f32,
     /// Change of `tilt` per load step.
     pub tilt_per_step: f32,
+    /// Shift of the stroke's root end, a fraction of the stroke, at the
+    /// minimum load.
+    pub root_shift: f32,
+    /// Shift of the stroke's far end (`Rx`), a fraction of the stroke, at
+    /// the minimum load.
+    pub end_shift: f32,
+    /// Change of `root_shift` per load step `ΔL`.
+    pub root_shift_per_step: f32,
+    /// Change of `end_shift` per load step.
+    pub end_shift_per_step: f32,
+    /// Change of `root_shift` per squared load step,
+    /// `((L − L_min)/ΔL)²`.
+    pub root_shift_per_step_sq: f32,
+    /// Change of `end_shift` per squared load step.
+    pub end_shift_per_step_sq: f32,
 }
 
 impl ConstraintShape {
@@ -53,18 +75,31 @@ impl ConstraintShape {
         tilt: 0.0,
         bulge_per_step: 0.0,
         tilt_per_step: 0.0,
+        root_shift: 0.0,
+        end_shift: 0.0,
+        root_shift_per_step: 0.0,
+        end_shift_per_step: 0.0,
+        root_shift_per_step_sq: 0.0,
+        end_shift_per_step_sq: 0.0,
     };
 
     /// The shape at `load_n` (no load dependence left). Where the load
-    /// terms carry `|bulge| + |tilt|` beyond [`MAX_SHAPE_SLOPE`] both are
-    /// scaled down to it, so the map stays increasing at every load; a
-    /// non-finite load gives the shape at the minimum load.
+    /// terms carry `|bulge| + |tilt| + |end_shift − root_shift|` beyond
+    /// [`MAX_SHAPE_SLOPE`] all four are scaled down to it, so the map stays
+    /// increasing at every load; a non-finite load gives the shape at the
+    /// minimum load.
     pub fn at_load(&self, params: &Params, load_n: f32) -> ConstraintShape {
         let steps = (load_n - params.min_load_n) / params.load_step_n;
         let steps = if steps.is_finite() { steps } else { 0.0 };
         let b = self.bulge + self.bulge_per_step * steps;
         let t = self.tilt + self.tilt_per_step * steps;
-        let sum = b.abs() + t.abs();
+        let r = self.root_shift
+            + self.root_shift_per_step * steps
+            + self.root_shift_per_step_sq * steps * steps;
+        let e = self.end_shift
+            + self.end_shift_per_step * steps
+            + self.end_shift_per_step_sq * steps * steps;
+        let sum = b.abs() + t.abs() + (e - r).abs();
         let k = if sum > MAX_SHAPE_SLOPE && sum.is_finite() {
             MAX_SHAPE_SLOPE / sum
         } else if sum.is_finite() {
@@ -77,11 +112,37 @@ impl ConstraintShape {
             tilt: t * k,
             bulge_per_step: 0.0,
             tilt_per_step: 0.0,
+            root_shift: r * k,
+            end_shift: e * k,
+            root_shift_per_step: 0.0,
+            end_shift_per_step: 0.0,
+            root_shift_per_step_sq: 0.0,
+            end_shift_per_step_sq: 0.0,
         }
     }
 
-    /// Finite, `|bulge| + |tilt| ≤ MAX_SHAPE_SLOPE` (strictly increasing).
+    /// Finite, `|bulge| + |tilt| + |end_shift − root_shift| ≤
+    /// MAX_SHAPE_SLOPE` (strictly increasing), shifts and their load terms
+    /// within `±MAX_SHAPE_SLOPE`.
     pub fn validate(&self) -> Result<(), Error> {
+        for (v, name) in [
+            (self.root_shift, "shape.root_shift"),
+            (self.end_shift, "shape.end_shift"),
+            (self.root_shift_per_step, "shape.root_shift_per_step"),
+            (self.end_shift_per_step, "shape.end_shift_per_step"),
+            (self.root_shift_per_step_sq, "shape.root_shift_per_step_sq"),
+            (self.end_shift_per_step_sq, "shape.end_shift_per_step_sq"),
+        ] {
+            if !v.is_finite() {
+                return Err(Error::NonFinite(name));
+            }
+            if !(v.abs() <= MAX_SHAPE_SLOPE) {
+                return Err(Error::OutOfRange(
+                    name,
+                    "shifts must be within +-MAX_SHAPE_SLOPE",
+                ));
+            }
+        }
         if !self.bulge.is_finite() {
             return Err(Error::NonFinite("shape.bulge"));
         }
@@ -103,25 +164,30 @@ impl ConstraintShape {
             ));
         }
         // A rounding's tolerance: the map is increasing up to a sum of 1.
-        if !(self.bulge.abs() + self.tilt.abs() <= MAX_SHAPE_SLOPE + 1e-6) {
+        if !(self.bulge.abs() + self.tilt.abs() + (self.end_shift - self.root_shift).abs()
+            <= MAX_SHAPE_SLOPE + 1e-6)
+        {
             return Err(Error::OutOfRange(
                 "shape.bulge",
-                "|bulge| + |tilt| must be at most MAX_SHAPE_SLOPE",
+                "|bulge| + |tilt| + |end_shift - root_shift| must be at most MAX_SHAPE_SLOPE",
             ));
         }
         Ok(())
     }
 
-    /// The stroke fraction `u` corrected: `u + u·(1 − u)·(bulge + tilt·(2u − 1))`.
+    /// The stroke fraction `u` corrected: `u + u·(1 − u)·(bulge + tilt·(2u − 1))
+    /// + (1 − u)·root_shift + u·end_shift`.
     fn map_fraction(&self, u: f32) -> f32 {
         u + u * (1.0 - u) * (self.bulge + self.tilt * (2.0 * u - 1.0))
+            + (1.0 - u) * self.root_shift
+            + u * self.end_shift
     }
 
     /// The muscle's contraction where `model` predicts `contraction`, with
     /// the shape at the minimum load (see [`Self::at_load`] for the rest).
     ///
-    /// The input is clamped to the model's stroke `[R, Rx]` (NaN → `R`), and
-    /// so is the result (the map keeps the stroke ends).
+    /// The input is clamped to the model's stroke `[R, Rx]` (NaN → `R`); the
+    /// result lies in the shifted stroke `[R + S·root_shift, Rx + S·end_shift]`.
     pub fn apply(&self, model: &LoadModel, contraction: f32) -> f32 {
         let (r, rx) = (model.root_contraction(), model.max_contraction());
         let s = rx - r;
@@ -134,23 +200,29 @@ impl ConstraintShape {
             r
         };
         let u = clamp((x - r) / s, 0.0, 1.0);
-        clamp(r + s * self.map_fraction(u), r, rx)
+        r + s * clamp(
+            self.map_fraction(u),
+            self.map_fraction(0.0),
+            self.map_fraction(1.0),
+        )
     }
 
     /// The inverse of [`Self::apply`]: the model's contraction whose
     /// corrected value is `contraction` (for a feedforward, which inverts
     /// the model at the model's contraction). A bisection of
-    /// [`SHAPE_INVERSE_STEPS`] steps (bounded work); clamped like `apply`.
+    /// [`SHAPE_INVERSE_STEPS`] steps (bounded work); the input is clamped to
+    /// the shifted stroke, the result is in `[R, Rx]`.
     pub fn model_contraction(&self, model: &LoadModel, contraction: f32) -> f32 {
         let (r, rx) = (model.root_contraction(), model.max_contraction());
         let s = rx - r;
         if !(s > 0.0) {
             return r;
         }
+        let (lo_end, hi_end) = (self.map_fraction(0.0), self.map_fraction(1.0));
         let target = if contraction.is_finite() {
-            clamp((contraction - r) / s, 0.0, 1.0)
+            clamp((contraction - r) / s, lo_end, hi_end)
         } else {
-            0.0
+            lo_end
         };
         let (mut lo, mut hi) = (0.0f32, 1.0f32);
         for _ in 0..SHAPE_INVERSE_STEPS {
@@ -232,6 +304,7 @@ mod tests {
             tilt: 0.1,
             bulge_per_step: 0.1,
             tilt_per_step: -0.05,
+            ..ConstraintShape::NEUTRAL
         };
         assert!(s.validate().is_ok());
         let at = s.at_load(&p, p.min_load_n + 2.0 * p.load_step_n);
@@ -240,6 +313,60 @@ mod tests {
         let far = s.at_load(&p, 1e9);
         assert!(far.bulge.abs() + far.tilt.abs() <= MAX_SHAPE_SLOPE + 1e-6);
         assert!(far.validate().is_ok());
+    }
+
+    #[test]
+    fn end_shifts_move_the_stroke_ends_quadratically_in_load_and_invert() {
+        let p = Params::DEFAULT;
+        let s = ConstraintShape {
+            bulge: 0.2,
+            tilt: -0.1,
+            root_shift_per_step_sq: -0.01,
+            end_shift_per_step_sq: 0.03,
+            end_shift_per_step: -0.01,
+            ..ConstraintShape::NEUTRAL
+        };
+        assert!(s.validate().is_ok());
+        // Two load steps up: shifts of 4× the per-step² terms and 2× the
+        // per-step ones.
+        let at = s.at_load(&p, p.min_load_n + 2.0 * p.load_step_n);
+        assert!((at.root_shift + 0.04).abs() < 1e-6 && (at.end_shift - 0.10).abs() < 1e-6);
+        assert!(at.validate().is_ok());
+        let m = model();
+        let (r, rx) = (m.root_contraction(), m.max_contraction());
+        let st = rx - r;
+        assert!((at.apply(&m, r) - (r - 0.04 * st)).abs() < 1e-6);
+        assert!((at.apply(&m, rx) - (rx + 0.10 * st)).abs() < 1e-6);
+        // Increasing, and the inverse gives the model's contraction back.
+        let mut last = f32::NEG_INFINITY;
+        for k in 0..=200 {
+            let x = r + st * k as f32 / 200.0;
+            let y = at.apply(&m, x);
+            assert!(y > last, "{k}");
+            last = y;
+            assert!((at.model_contraction(&m, y) - x).abs() < 1e-5, "{k}");
+        }
+        // Far loads: scaled back into the increasing range.
+        for load in [1e4f32, 1e9] {
+            let far = s.at_load(&p, load);
+            assert!(far.validate().is_ok(), "{far:?}");
+            assert!(far.map_fraction(1.0) > far.map_fraction(0.0));
+        }
+        for bad in [f32::NAN, 0.95, -0.95] {
+            let b = ConstraintShape {
+                end_shift_per_step_sq: bad,
+                ..s
+            };
+            assert!(b.validate().is_err(), "{bad}");
+        }
+        // The sum with the ends' difference is limited too.
+        let steep = ConstraintShape {
+            bulge: 0.5,
+            root_shift: -0.3,
+            end_shift: 0.3,
+            ..ConstraintShape::NEUTRAL
+        };
+        assert!(steep.validate().is_err());
     }
 
     #[test]
@@ -282,6 +409,8 @@ mod tests {
             tilt: 0.1,
             bulge_per_step: -0.1,
             tilt_per_step: 0.0,
+            end_shift_per_step_sq: 0.02,
+            ..ConstraintShape::NEUTRAL
         };
         let with = Effects {
             shape: Some(shape),

@@ -4,7 +4,7 @@
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use pam_core::effects::memory::MIN_MERGE_SPAN;
-use pam_core::effects::rate::RATE_EXPONENT_RANGE;
+use pam_core::effects::rate::{MAX_RATE_MPA_PER_S, RATE_EXPONENT_RANGE};
 use pam_core::effects::shape::MAX_SHAPE_SLOPE;
 use pam_core::effects::{
     ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
@@ -54,20 +54,23 @@ impl EffectKind {
     }
 
     /// Number of parameters the effect adds (the rate's exponent, chosen
-    /// from [`RATE_EXPONENTS`] by the fit, counts as one).
+    /// from [`RATE_EXPONENTS`] by the fit, counts as one; its saturation
+    /// too).
     pub fn parameter_count(self) -> usize {
         match self {
-            EffectKind::RateDependence | EffectKind::ConstraintShape => 4,
+            EffectKind::RateDependence => 5,
+            EffectKind::ConstraintShape => 8,
             _ => 2,
         }
     }
 
     /// How many leading entries of `theta` the optimiser moves; the rest
-    /// (the rate's exponent) are fixed per start.
+    /// (the rate's exponent and the record's fastest ramp) are fixed per
+    /// start.
     fn free_count(self) -> usize {
         match self {
-            EffectKind::RateDependence => 3,
-            EffectKind::ConstraintShape => 4,
+            EffectKind::RateDependence => 4,
+            EffectKind::ConstraintShape => 8,
             _ => 2,
         }
     }
@@ -84,8 +87,9 @@ impl EffectKind {
     }
 
     /// Starting points of the fit, in the unbounded coordinates of
-    /// [`Self::apply`].
-    pub(super) fn starts(self) -> Vec<Vec<f64>> {
+    /// [`Self::apply`]; `max_ramp_rate` is the record's fastest ramp,
+    /// MPa/s (the rate law's saturation).
+    pub(super) fn starts(self, max_ramp_rate: f64) -> Vec<Vec<f64>> {
         match self {
             // A rescaled branch that merges within 0.03 of contraction, and
             // a quicker blend that is not limited.
@@ -93,17 +97,23 @@ impl EffectKind {
                 vec![MEMORY_SHAPE.theta(1.0), MERGE_SPAN.theta(0.03)],
                 vec![MEMORY_SHAPE.theta(5.0), MERGE_SPAN.theta(0.5)],
             ],
-            // One start per exponent: factor 1 at rest, 5 per (MPa/s)^n,
-            // a 0.2 s filter.
+            // Two starts per exponent: factor 1 at rest, 5 per (MPa/s)^n,
+            // a 0.2 s filter, saturating just above the fastest ramp or
+            // near a step's rate (the optimiser does not cross between
+            // them: only the few samples after a step see the saturation).
             EffectKind::RateDependence => RATE_EXPONENTS
                 .iter()
-                .map(|&n| {
-                    vec![
-                        logit(1.0 / 4.0),
-                        logit(5.0 / 100.0),
-                        rate_filter_theta(0.2),
-                        n,
-                    ]
+                .flat_map(|&n| {
+                    [logit(0.05), logit(0.9)].map(|sat| {
+                        vec![
+                            logit(1.0 / 4.0),
+                            logit(5.0 / 100.0),
+                            rate_filter_theta(0.2),
+                            sat,
+                            n,
+                            max_ramp_rate,
+                        ]
+                    })
                 })
                 .collect(),
             EffectKind::Creep => vec![
@@ -111,7 +121,7 @@ impl EffectKind {
                 vec![logit(0.1 / 0.95), 5.0f64.ln()],
             ],
             EffectKind::LoadDependentWidth => vec![vec![logit(1.0 / 4.0), 0.0]],
-            EffectKind::ConstraintShape => vec![vec![0.0; 4]],
+            EffectKind::ConstraintShape => vec![vec![0.0; 8]],
         }
     }
 
@@ -129,16 +139,23 @@ impl EffectKind {
                 })
             }
             EffectKind::RateDependence => {
+                // theta: factor at rest, growth, filter, saturation (free);
+                // exponent and the record's fastest ramp (fixed per start).
                 let (n_lo, n_hi) = RATE_EXPONENT_RANGE;
-                let exponent = match theta.get(3) {
+                let exponent = match theta.get(4) {
                     Some(n) if n.is_finite() => (*n as f32).clamp(n_lo, n_hi),
                     _ => 1.0,
+                };
+                let fastest_ramp = match theta.get(5) {
+                    Some(m) if *m > 0.0 => m.min(f64::from(MAX_RATE_MPA_PER_S)),
+                    _ => f64::from(MAX_RATE_MPA_PER_S),
                 };
                 e.rate = Some(RateDependence {
                     scale_at_rest: (4.0 * sigmoid(t(0))) as f32,
                     scale_per_mpa_per_s: (100.0 * sigmoid(t(1))) as f32,
                     exponent,
                     filter_time_s: rate_filter_time(t(2)) as f32,
+                    max_rate_mpa_per_s: rate_saturation(fastest_ramp, t(3)) as f32,
                 })
             }
             EffectKind::Creep => {
@@ -154,14 +171,26 @@ impl EffectKind {
                 })
             }
             EffectKind::ConstraintShape => {
-                // Each within half the slope limit: their sum within it.
-                let half = 0.5 * f64::from(MAX_SHAPE_SLOPE);
-                // (`at_load` keeps the sum within it at every load.)
+                // Bulge and tilt within a third of the slope limit each, the
+                // stroke ends' shifts' load terms within a sixth each
+                // (`at_load` keeps the sum within the limit at every load).
+                // The shifts at the minimum load stay zero (the base's
+                // stroke ends); their linear load terms overlap the base's
+                // regressions of the stroke ends, but the joint refit does
+                // not find those where the ends also bend with load.
+                let third = f64::from(MAX_SHAPE_SLOPE) / 3.0;
+                let sixth = f64::from(MAX_SHAPE_SLOPE) / 6.0;
                 e.shape = Some(ConstraintShape {
-                    bulge: (half * t(0).tanh()) as f32,
-                    tilt: (half * t(1).tanh()) as f32,
-                    bulge_per_step: (half * t(2).tanh()) as f32,
-                    tilt_per_step: (half * t(3).tanh()) as f32,
+                    bulge: (third * t(0).tanh()) as f32,
+                    tilt: (third * t(1).tanh()) as f32,
+                    bulge_per_step: (third * t(2).tanh()) as f32,
+                    tilt_per_step: (third * t(3).tanh()) as f32,
+                    root_shift: 0.0,
+                    end_shift: 0.0,
+                    root_shift_per_step: (sixth * t(4).tanh()) as f32,
+                    end_shift_per_step: (sixth * t(5).tanh()) as f32,
+                    root_shift_per_step_sq: (sixth * t(6).tanh()) as f32,
+                    end_shift_per_step_sq: (sixth * t(7).tanh()) as f32,
                 })
             }
         }
@@ -187,6 +216,16 @@ pub const RATE_EXPONENTS: [f64; 3] = [0.5, 0.75, 1.0];
 /// over `[0.02, 1]` s.
 fn rate_filter_time(theta: f64) -> f64 {
     (0.02 + 0.98 * sigmoid(theta)).clamp(0.02, 1.0)
+}
+
+/// The rate law's saturation from its unbounded coordinate: logarithmic
+/// between the record's fastest ramp (below which the data shows the law)
+/// and [`MAX_RATE_MPA_PER_S`] (a step's rate), so the law cannot saturate
+/// inside the measured ramps and cannot grow beyond what a step shows.
+fn rate_saturation(fastest_ramp: f64, theta: f64) -> f64 {
+    let hi = f64::from(MAX_RATE_MPA_PER_S);
+    let lo = fastest_ramp.clamp(0.01, hi);
+    (lo * (hi / lo).powf(sigmoid(theta))).clamp(lo, hi)
 }
 
 fn rate_filter_theta(tau: f64) -> f64 {
@@ -322,6 +361,20 @@ pub struct CandidateResult {
     pub coeffs: Coeffs,
 }
 
+impl CandidateResult {
+    /// Its held-out cut times its signature cut (the evidence rule's two
+    /// located measures), for ranking the candidates that earn their place.
+    pub fn located_gain(&self) -> f64 {
+        let signature_cut = 1.0 - self.signature.rms_after / self.signature.rms_before;
+        let g = self.improvement.max(0.0) * signature_cut.max(0.0);
+        if g.is_finite() {
+            g
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Whether the improvement sits in the regime the effect explains.
 #[derive(Clone, Debug, Serialize)]
 pub struct Signature {
@@ -368,24 +421,48 @@ pub(super) fn evaluate_candidate(
     // with the effect on (an effect the base fit could not see biases it:
     // creep lags every ramp the static curve was fitted to), then the
     // effect's parameters again on that base.
-    let theta = fit_effect(model.1, kind.starts());
-    let (base_params, coeffs) = refit_base(
-        setup,
-        model.0,
-        model.1,
-        kind.apply(current, &theta),
-        cfg.refit_iterations,
-    );
-    let theta = if cfg.refit_iterations > 0 {
-        fit_effect(coeffs, vec![theta])
+    // The static shape trades off against the base's stroke ends and load
+    // regressions, which the correction's end shifts overlap: it gets
+    // a second alternation.
+    let alternations = if kind == EffectKind::ConstraintShape {
+        2
     } else {
-        theta
+        1
     };
+    let mut theta = fit_effect(model.1, kind.starts(setup.regimes.max_ramp_rate_mpa_per_s));
+    let (mut base_params, mut coeffs) = (model.0, model.1);
+    for _ in 0..alternations {
+        (base_params, coeffs) = refit_base(
+            setup,
+            base_params,
+            coeffs,
+            kind.apply(current, &theta),
+            cfg.refit_iterations,
+        );
+        if cfg.refit_iterations > 0 {
+            theta = fit_effect(coeffs, vec![theta]);
+        }
+    }
     let effects = kind.apply(current, &theta);
     let n_params = current_params + kind.parameter_count();
-    let (errors, _) = setup.errors(&coeffs, effects, n_params);
+    let (errors, res) = setup.errors(&coeffs, effects, n_params);
     let improvement = 1.0 - errors.rms_heldout / current_errors.rms_heldout;
-    let bic_drop = current_errors.bic - errors.bic;
+    // The evidence's independent samples: the base residual's correlation
+    // length counts the systematic error as the correlated part, and where
+    // that error is the effect itself (a static-shape error runs along
+    // whole sweeps) the candidate's residual is correlated over far fewer
+    // samples. Both models are compared over the shorter of the two
+    // lengths (one count for both, as a BIC needs).
+    let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| res[i]).collect();
+    let cand_corr = crate::stats::correlation_length(
+        &train_res,
+        setup.noise_contraction,
+        2 * super::PRESSURE_MEDIAN_HALF_WIDTH + 1,
+    );
+    let corr = setup.corr_len.min(cand_corr);
+    let n_train = setup.train_idx.len();
+    let bic_drop = super::evaluate::bic(current_errors.rms_train, n_train, corr, current_params)
+        - super::evaluate::bic(errors.rms_train, n_train, corr, n_params);
     let regime_rms = |e: &ModelErrors| -> f64 {
         match kind {
             EffectKind::LoadDependentWidth => {
@@ -439,17 +516,32 @@ mod tests {
         }
         for n in [0.5, 0.75, 1.0, 0.0, 9.0, f64::NAN] {
             for t in [-50.0, 0.0, 50.0] {
-                let e = EffectKind::RateDependence.apply(Effects::NONE, &[t, -t, t, n]);
+                let e = EffectKind::RateDependence.apply(Effects::NONE, &[t, -t, t, t, n]);
                 assert!(e.validate().is_ok(), "{n} {t}: {e:?}");
             }
         }
-        for start in EffectKind::RateDependence.starts() {
+        for start in EffectKind::RateDependence.starts(0.3) {
             let r = EffectKind::RateDependence
                 .apply(Effects::NONE, &start)
                 .rate
                 .unwrap();
             assert!(RATE_EXPONENTS.contains(&f64::from(r.exponent)));
             assert!((r.filter_time_s - 0.2).abs() < 1e-6, "{r:?}");
+            // Saturating just above the fastest ramp or near a step's rate.
+            let m = r.max_rate_mpa_per_s;
+            assert!((m > 0.3 && m < 0.4) || (m > 2.0 && m <= 5.0), "{r:?}");
+        }
+        for m in [0.0, -1.0, 0.3, 99.0, f64::NAN] {
+            for t in [-50.0, 0.0, 50.0] {
+                let e =
+                    EffectKind::RateDependence.apply(Effects::NONE, &[0.0, 0.0, 0.0, t, 1.0, m]);
+                assert!(e.validate().is_ok(), "{m}: {e:?}");
+                let sat = e.rate.unwrap().max_rate_mpa_per_s;
+                if m == 0.3 {
+                    // Never inside the measured ramps.
+                    assert!(sat >= 0.3 - 1e-6, "{t}: {sat}");
+                }
+            }
         }
     }
 }

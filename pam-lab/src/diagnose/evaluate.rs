@@ -31,6 +31,14 @@ pub fn simulate(
         .collect()
 }
 
+/// BIC of a model with training RMS `rms_train` over `n_train` samples
+/// whose residual is correlated over `corr_len` samples (`n_train /
+/// corr_len` independent ones), with `n_params` parameters.
+pub fn bic(rms_train: f64, n_train: usize, corr_len: f64, n_params: usize) -> f64 {
+    let n_eff = (n_train as f64 / corr_len.max(1.0)).max(1.0);
+    n_eff * (rms_train * rms_train).max(1e-300).ln() + n_params as f64 * n_eff.ln()
+}
+
 /// Errors of one model.
 #[derive(Clone, Debug, Serialize)]
 pub struct ModelErrors {
@@ -85,6 +93,8 @@ pub(super) struct Setup<'a> {
     pub(super) branches: Vec<Branch>,
     /// Effective-sample divisor: the base residual's correlation length.
     pub(super) corr_len: f64,
+    /// The record's contraction noise floor.
+    pub(super) noise_contraction: f64,
     /// Each sample's bin of measured contraction along the record's stroke
     /// ([`stroke_bins`]).
     pub(super) stroke_bin: Vec<usize>,
@@ -164,8 +174,7 @@ impl Setup<'_> {
         let res = self.residuals_with(coeffs, effects);
         let (rms_heldout, _) = rms_where(&res, |i| self.heldout[i]);
         let (rms_train, n_train) = rms_where(&res, |i| !self.heldout[i]);
-        let n_eff = (n_train as f64 / self.corr_len).max(1.0);
-        let bic = n_eff * (rms_train * rms_train).max(1e-300).ln() + n_params as f64 * n_eff.ln();
+        let bic = bic(rms_train, n_train, self.corr_len, n_params);
         let regimes = self
             .regimes
             .named()

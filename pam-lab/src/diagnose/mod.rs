@@ -35,7 +35,12 @@
 //!      and stroke cell for the constraint shape) is cut by at least the
 //!      same fraction.
 //!
-//!    Of those that earn it, the one with the lowest held-out RMS is added;
+//!    Of those that earn it, the one with the largest product of the two
+//!    cuts (held-out RMS overall and in its own regime) is added: a gain
+//!    that is large and sits where the effect acts. (Ranked by the overall
+//!    cut alone, an effect that takes up part of another's error in its
+//!    transients, creep standing in for the rate's loops after steps, won
+//!    over the one whose regime it is.)
 //!    then every remaining candidate is fitted again on the new base, until
 //!    none earns its parameters or [`DiagnoseConfig::max_effects`] are in.
 //!    No candidate earning it is the answer `none`.
@@ -241,6 +246,7 @@ pub fn diagnose_with_progress(
         regimes,
         branches,
         corr_len: 1.0,
+        noise_contraction: noise.contraction,
         stroke_bin: evaluate::stroke_bins(samples),
     };
     let base_res = setup.residuals(Effects::NONE);
@@ -301,7 +307,7 @@ pub fn diagnose_with_progress(
         let best = results
             .iter()
             .filter(|c| c.earned)
-            .min_by(|a, b| a.rms.total_cmp(&b.rms))
+            .max_by(|a, b| a.located_gain().total_cmp(&b.located_gain()))
             .cloned();
         rounds.push(Round {
             rms_start: current_errors.rms_heldout,

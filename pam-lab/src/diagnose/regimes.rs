@@ -172,6 +172,11 @@ pub struct Regimes {
     pub slow_ramp: Vec<bool>,
     /// Within 10 s after a pressure step while the pressure holds.
     pub hold_after_step: Vec<bool>,
+    /// The fastest ramp of the record, MPa/s: the largest pressure rate
+    /// (over ±0.2 s) at least 0.5 s away from any step. A rate law fitted
+    /// to the record saturates here, so it cannot widen a loop beyond what
+    /// the record shows.
+    pub max_ramp_rate_mpa_per_s: f64,
 }
 
 impl Regimes {
@@ -184,6 +189,33 @@ impl Regimes {
             ("hold_after_step", &self.hold_after_step),
         ]
     }
+}
+
+/// The largest `|rate|` at samples farther than `margin` samples from any
+/// step (either side: the rate window reaches ahead of the sample).
+fn max_ramp_rate(rate: &[f64], step: &[bool], margin: usize) -> f64 {
+    let n = rate.len();
+    let mut last_step: Option<usize> = None;
+    let mut next_step: Vec<Option<usize>> = vec![None; n];
+    let mut next = None;
+    for i in (0..n).rev() {
+        if step[i] {
+            next = Some(i);
+        }
+        next_step[i] = next;
+    }
+    let mut top = 0.0f64;
+    for i in 0..n {
+        if step[i] {
+            last_step = Some(i);
+        }
+        let far_behind = last_step.is_none_or(|s| i - s > margin);
+        let far_ahead = next_step[i].is_none_or(|s| s - i > margin);
+        if far_behind && far_ahead && rate[i].is_finite() {
+            top = top.max(rate[i].abs());
+        }
+    }
+    top
 }
 
 /// Label the regimes of a record from its pressure.
@@ -220,6 +252,7 @@ pub fn regimes(samples: &[Sample], coeffs: &Coeffs, tracker_cfg: TrackerConfig) 
         fast_ramp: vec![false; n],
         slow_ramp: vec![false; n],
         hold_after_step: vec![false; n],
+        max_ramp_rate_mpa_per_s: max_ramp_rate(&rate, &step, (0.5 / dt) as usize + w + 3),
     };
     let hold_len = (10.0 / dt) as usize;
     let near_step = (0.5 / dt) as usize;
