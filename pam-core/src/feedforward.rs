@@ -33,7 +33,7 @@
 //! Fixed-size state, no allocation, no panic, bounded work: the creep
 //! inverse is a few operations, the shape inverse
 //! [`SHAPE_INVERSE_STEPS`](crate::effects::shape::SHAPE_INVERSE_STEPS)
-//! bisection steps, the memory's inverse as documented there (two branch
+//! safeguarded Newton steps, the memory's inverse as documented there (two branch
 //! inverses when a minor loop starts or closes, two Newton steps when only
 //! the rate effect's offset scale changed).
 //!

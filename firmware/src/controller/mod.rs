@@ -48,7 +48,7 @@
 //! new model's inverse-table build per step until it is complete (the new
 //! model's forward evaluation is active from the switch). A feedforward
 //! with effects adds pam-core's `ModelInverse` (bounded loops only: the
-//! shape's and the memory's bisections of fixed length, `N/2 + 1`
+//! shape's Newton steps and the memory's bisections of fixed length, `N/2 + 1`
 //! wipe-out passes) and builds [`TABLE_BUILD_UNITS_PER_STEP_EFFECTS`] units
 //! per step instead. No allocation, no loops over data, no panicking
 //! operation (no indexing by runtime values, no division by a runtime value
@@ -85,7 +85,7 @@ pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 10;
 
 /// [`TABLE_BUILD_UNITS_PER_STEP`] for a feedforward that inverts effects
 /// other than the memory ([`Feedforward::HysteresisEffects`]): its step costs
-/// more (the shape's bisection, the rate law's `powf`), so fewer units keep
+/// more (the shape's inverse, the rate law's `powf`), so fewer units keep
 /// the worst case under 2 000 instructions (bench-m4); a complete build
 /// then takes at most `BUILD_UNITS_MAX / 4` = 440 periods.
 pub const TABLE_BUILD_UNITS_PER_STEP_EFFECTS: u16 = 4;

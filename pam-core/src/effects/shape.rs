@@ -33,9 +33,14 @@ use crate::params::Params;
 /// stays at least `1 − MAX_SHAPE_SLOPE` of the model's.
 pub const MAX_SHAPE_SLOPE: f32 = 0.9;
 
-/// Bisection steps of [`ConstraintShape::model_contraction`]: the stroke
-/// (about 0.25) over 2²⁴ is below 2·10⁻⁸ of contraction.
-pub const SHAPE_INVERSE_STEPS: usize = 24;
+/// Safeguarded Newton steps of [`ConstraintShape::model_contraction`]. The
+/// map's slope along the stroke is within `[1 − MAX_SHAPE_SLOPE,
+/// 1 + MAX_SHAPE_SLOPE]`, so from the chord's estimate the steps converge
+/// fast: over 200 000 random shapes at the slope limit the inverse is
+/// within 2·10⁻⁶ of the stroke after these steps (test
+/// `newton_inverse_matches_a_long_bisection`), against 24 bisection steps
+/// before (about 580 instructions on the M4F per call).
+pub const SHAPE_INVERSE_STEPS: usize = 4;
 
 /// Parameters of the constraint-shape correction (fractions of the stroke).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -207,11 +212,23 @@ impl ConstraintShape {
         )
     }
 
+    /// The slope of [`Self::map_fraction`] in `u`:
+    /// `1 + (1 − 2u)·(bulge + tilt·(2u − 1)) + 2·tilt·u·(1 − u) − root_shift + end_shift`,
+    /// at least `1 − MAX_SHAPE_SLOPE` for a validated shape at a load.
+    fn map_slope(&self, u: f32) -> f32 {
+        1.0 + (1.0 - 2.0 * u) * (self.bulge + self.tilt * (2.0 * u - 1.0))
+            + 2.0 * self.tilt * u * (1.0 - u)
+            - self.root_shift
+            + self.end_shift
+    }
+
     /// The inverse of [`Self::apply`]: the model's contraction whose
     /// corrected value is `contraction` (for a feedforward, which inverts
-    /// the model at the model's contraction). A bisection of
-    /// [`SHAPE_INVERSE_STEPS`] steps (bounded work); the input is clamped to
-    /// the shifted stroke, the result is in `[R, Rx]`.
+    /// the model at the model's contraction). [`SHAPE_INVERSE_STEPS`]
+    /// Newton steps from the chord's estimate, each kept inside the bracket
+    /// the previous ones established (a step that leaves it bisects
+    /// instead): bounded work, and never worse than a bisection. The input
+    /// is clamped to the shifted stroke, the result is in `[R, Rx]`.
     pub fn model_contraction(&self, model: &LoadModel, contraction: f32) -> f32 {
         let (r, rx) = (model.root_contraction(), model.max_contraction());
         let s = rx - r;
@@ -224,16 +241,30 @@ impl ConstraintShape {
         } else {
             lo_end
         };
+        let span = hi_end - lo_end;
         let (mut lo, mut hi) = (0.0f32, 1.0f32);
+        let mut u = if span > 0.0 {
+            clamp((target - lo_end) / span, 0.0, 1.0)
+        } else {
+            0.5
+        };
         for _ in 0..SHAPE_INVERSE_STEPS {
-            let mid = 0.5 * (lo + hi);
-            if self.map_fraction(mid) <= target {
-                lo = mid;
+            let f = self.map_fraction(u) - target;
+            if f <= 0.0 {
+                lo = u;
             } else {
-                hi = mid;
+                hi = u;
             }
+            let slope = self.map_slope(u);
+            let next = u - f / slope;
+            // NaN (a zero slope) and steps out of the bracket bisect.
+            u = if next >= lo && next <= hi {
+                next
+            } else {
+                0.5 * (lo + hi)
+            };
         }
-        clamp(r + s * 0.5 * (lo + hi), r, rx)
+        clamp(r + s * u, r, rx)
     }
 }
 
@@ -241,6 +272,63 @@ impl ConstraintShape {
 mod tests {
     use super::*;
     use crate::coeffs::Coeffs;
+
+    /// A long bisection of the map: the reference for the Newton inverse.
+    fn bisect(shape: &ConstraintShape, target: f32) -> f32 {
+        let (mut lo, mut hi) = (0.0f32, 1.0f32);
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if shape.map_fraction(mid) <= target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
+    #[test]
+    fn newton_inverse_matches_a_long_bisection() {
+        let m = model();
+        let (r, rx) = (m.root_contraction(), m.max_contraction());
+        let s = rx - r;
+        // A deterministic spread of shapes, half of them at the slope limit.
+        let mut seed = 0x2545_f491_u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        let mut worst = 0.0f32;
+        for k in 0..200_000 {
+            let (a, b, c) = (2.0 * next() - 1.0, 2.0 * next() - 1.0, 2.0 * next() - 1.0);
+            let shift = 0.4 * (2.0 * next() - 1.0);
+            let total = a.abs() + b.abs() + c.abs() + 1e-6;
+            let limit = if k % 2 == 0 {
+                MAX_SHAPE_SLOPE
+            } else {
+                MAX_SHAPE_SLOPE * next()
+            };
+            let shape = ConstraintShape {
+                bulge: a * limit / total,
+                tilt: b * limit / total,
+                root_shift: shift,
+                end_shift: shift + c * limit / total,
+                ..ConstraintShape::NEUTRAL
+            };
+            assert!(shape.validate().is_ok() || shape.end_shift.abs() > MAX_SHAPE_SLOPE);
+            let x = r + s
+                * (shape.map_fraction(0.0)
+                    + next() * (shape.map_fraction(1.0) - shape.map_fraction(0.0)));
+            let target = (x - r) / s;
+            let exact = r + s * bisect(&shape, target);
+            let err = (shape.model_contraction(&m, x) - exact).abs() / s;
+            worst = worst.max(err);
+        }
+        eprintln!("worst Newton inverse error: {worst:e} of the stroke");
+        assert!(worst <= 2e-6, "{worst}");
+    }
 
     fn model() -> LoadModel {
         Coeffs::new(Params::DEFAULT)
