@@ -562,6 +562,24 @@ fn main() -> ! {
         }),
         ..Effects::NONE
     };
+    // What `diagnose` names on host-sim's rigs (the end-to-end run): the
+    // static shape with its stroke ends moving with load, then the memory.
+    let shape_memory = Effects {
+        memory: memory_only.memory,
+        shape: Some(ConstraintShape {
+            bulge: 0.2,
+            tilt: 0.1,
+            bulge_per_step: 0.02,
+            tilt_per_step: 0.0,
+            root_shift: 0.05,
+            end_shift: -0.05,
+            root_shift_per_step: -0.01,
+            end_shift_per_step: 0.01,
+            root_shift_per_step_sq: 0.001,
+            end_shift_per_step_sq: -0.001,
+        }),
+        ..Effects::NONE
+    };
     // What `diagnose` names on examples/rate_dependence.csv first and
     // second: the memory, then the rate (linear law).
     let memory_rate = Effects {
@@ -588,6 +606,7 @@ fn main() -> ! {
         ("creep", Feedforward::HysteresisEffects(creep)),
         ("width", Feedforward::HysteresisEffects(width)),
         ("shape", Feedforward::HysteresisEffects(shape)),
+        ("shape_memory", Feedforward::HysteresisEffects(shape_memory)),
         ("memory_rate", Feedforward::HysteresisEffects(memory_rate)),
         ("effects", Feedforward::HysteresisEffects(all)),
     ];
