@@ -10,7 +10,7 @@
 //! gain sweep; the defaults are `ControllerConfig::DEFAULT`'s).
 //! `--no-end-to-end` leaves out the last part (each effect rig
 //! characterised, fitted, diagnosed and tracked with the firmware booted
-//! from the blobs: about 30 s of the run's 35 s).
+//! from the blobs: about 41 s of the run's 42 s).
 //! Default output folder: `target/host-sim-report/`.
 
 use host_sim::bench::{run, BenchConfig, Mode, Run};
