@@ -9,10 +9,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pam_core::effects::{
-    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
-    MAX_OFFSET_SCALE,
-};
+use pam_core::effects::MAX_OFFSET_SCALE;
 use pam_core::Simulator;
 use pam_fuzz::Floats;
 
@@ -22,38 +19,7 @@ fuzz_target!(|data: &[u8]| {
     let mut f = Floats::new(data);
     let coeffs = f.coeffs();
     let p = *coeffs.params();
-    let on = f.byte();
-    let effects = Effects {
-        memory: (on & 1 != 0).then(|| NonLocalMemory {
-            shape: f.near(1.0, 2.0),
-            merge_span: f.near(0.1, 2.0),
-        }),
-        rate: (on & 2 != 0).then(|| RateDependence {
-            scale_at_rest: f.near(1.0, 2.0),
-            scale_per_mpa_per_s: f.near(2.0, 2.0),
-            ..RateDependence::NEUTRAL
-        }),
-        creep: (on & 4 != 0).then(|| Creep {
-            gain: f.near(0.3, 2.0),
-            time_constant_s: f.near(2.0, 2.0),
-        }),
-        width: (on & 8 != 0).then(|| LoadDependentWidth {
-            scale_at_min_load: f.near(1.0, 2.0),
-            scale_per_step: f.near(0.2, 2.0),
-        }),
-        shape: (on & 16 != 0).then(|| ConstraintShape {
-            bulge: f.near(0.3, 2.0),
-            tilt: f.near(-0.2, 2.0),
-            bulge_per_step: f.near(0.05, 2.0),
-            tilt_per_step: f.near(0.05, 2.0),
-            root_shift: f.near(0.0, 2.0),
-            end_shift: f.near(0.0, 2.0),
-            root_shift_per_step: f.near(0.01, 2.0),
-            end_shift_per_step: f.near(0.01, 2.0),
-            root_shift_per_step_sq: f.near(0.01, 2.0),
-            end_shift_per_step_sq: f.near(0.01, 2.0),
-        }),
-    };
+    let effects = f.effects();
     let config = f.tracker_config();
     let initial_load_n = f.around(p.min_load_n, p.max_load_n);
     let Ok(mut sim) = Simulator::<N>::new(coeffs, effects, config, initial_load_n) else {

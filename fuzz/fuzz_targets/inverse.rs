@@ -8,10 +8,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pam_core::effects::{
-    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
-    MAX_OFFSET_SCALE,
-};
+use pam_core::effects::MAX_OFFSET_SCALE;
 use pam_core::{InverseState, ModelInverse};
 use pam_fuzz::Floats;
 
@@ -21,34 +18,7 @@ fuzz_target!(|data: &[u8]| {
     let mut f = Floats::new(data);
     let coeffs = f.coeffs();
     let p = *coeffs.params();
-    let on = f.byte();
-    let effects = Effects {
-        memory: (on & 1 != 0).then(|| NonLocalMemory {
-            shape: f.near(1.0, 2.0),
-            merge_span: f.near(0.1, 2.0),
-        }),
-        rate: (on & 2 != 0).then(|| RateDependence {
-            scale_at_rest: f.near(1.0, 2.0),
-            scale_per_mpa_per_s: f.near(2.0, 2.0),
-            exponent: f.near(0.8, 1.0),
-            filter_time_s: f.near(0.3, 2.0),
-        }),
-        creep: (on & 4 != 0).then(|| Creep {
-            gain: f.near(0.3, 2.0),
-            time_constant_s: f.near(2.0, 2.0),
-        }),
-        width: (on & 8 != 0).then(|| LoadDependentWidth {
-            scale_at_min_load: f.near(1.0, 2.0),
-            scale_per_step: f.near(0.2, 2.0),
-        }),
-        shape: (on & 16 != 0).then(|| ConstraintShape {
-            bulge: f.near(0.3, 2.0),
-            tilt: f.near(-0.2, 2.0),
-            bulge_per_step: f.near(0.05, 2.0),
-            tilt_per_step: f.near(0.05, 2.0),
-            ..pam_core::effects::ConstraintShape::NEUTRAL
-        }),
-    };
+    let effects = f.effects();
     let dt_s = f.near(1e-3, 2.0);
     let Ok(inverse) = ModelInverse::new(effects, dt_s) else {
         return; // refused by validation

@@ -141,6 +141,49 @@ impl<'a> Floats<'a> {
 
     /// A tracker configuration around [`TrackerConfig::DEFAULT_PRESSURE`],
     /// or the default when the perturbed one does not validate.
+    /// Effects, each on or off by one byte's bits, with every parameter
+    /// perturbed around a plausible value (out-of-range values included:
+    /// `Effects::validate` must refuse them).
+    pub fn effects(&mut self) -> pam_core::Effects {
+        use pam_core::effects::{
+            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
+        };
+        let on = self.byte();
+        pam_core::Effects {
+            memory: (on & 1 != 0).then(|| NonLocalMemory {
+                shape: self.near(1.0, 2.0),
+                merge_span: self.near(0.1, 2.0),
+            }),
+            rate: (on & 2 != 0).then(|| RateDependence {
+                scale_at_rest: self.near(1.0, 2.0),
+                scale_per_mpa_per_s: self.near(2.0, 2.0),
+                exponent: self.near(0.8, 1.0),
+                filter_time_s: self.near(0.3, 2.0),
+                max_rate_mpa_per_s: self.near(0.5, 2.0),
+            }),
+            creep: (on & 4 != 0).then(|| Creep {
+                gain: self.near(0.3, 2.0),
+                time_constant_s: self.near(2.0, 2.0),
+            }),
+            width: (on & 8 != 0).then(|| LoadDependentWidth {
+                scale_at_min_load: self.near(1.0, 2.0),
+                scale_per_step: self.near(0.2, 2.0),
+            }),
+            shape: (on & 16 != 0).then(|| ConstraintShape {
+                bulge: self.near(0.3, 2.0),
+                tilt: self.near(-0.2, 2.0),
+                bulge_per_step: self.near(0.05, 2.0),
+                tilt_per_step: self.near(0.05, 2.0),
+                root_shift: self.near(0.0, 2.0),
+                end_shift: self.near(0.0, 2.0),
+                root_shift_per_step: self.near(0.01, 2.0),
+                end_shift_per_step: self.near(0.01, 2.0),
+                root_shift_per_step_sq: self.near(0.01, 2.0),
+                end_shift_per_step_sq: self.near(0.01, 2.0),
+            }),
+        }
+    }
+
     pub fn tracker_config(&mut self) -> TrackerConfig {
         let d = TrackerConfig::DEFAULT_PRESSURE;
         let c = TrackerConfig {
