@@ -139,8 +139,6 @@ impl<'a> Floats<'a> {
         }
     }
 
-    /// A tracker configuration around [`TrackerConfig::DEFAULT_PRESSURE`],
-    /// or the default when the perturbed one does not validate.
     /// Effects, each on or off by one byte's bits, with every parameter
     /// perturbed around a plausible value (out-of-range values included:
     /// `Effects::validate` must refuse them).
@@ -184,6 +182,8 @@ impl<'a> Floats<'a> {
         }
     }
 
+    /// A tracker configuration around [`TrackerConfig::DEFAULT_PRESSURE`],
+    /// or the default when the perturbed one does not validate.
     pub fn tracker_config(&mut self) -> TrackerConfig {
         let d = TrackerConfig::DEFAULT_PRESSURE;
         let c = TrackerConfig {

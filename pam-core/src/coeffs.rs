@@ -93,6 +93,17 @@ impl Coeffs {
         let factor = general.factor(f64::from(p.root_contraction));
         let family = LoadFamily::from_factor(&params, &factor);
         family.check(0.0)?;
+        // The chip builds a load's model in `f32` (the tracker's load
+        // switch): it must be finite wherever the `f64` family was checked.
+        let family_f32 = crate::load_model::FamilyF32::new(&family);
+        for k in 0..SHAPE_CHECK_LOADS {
+            if !family_f32.model_is_finite(family.check_load_n(k) as f32) {
+                return Err(Error::OutOfRange(
+                    "max_load_n",
+                    "the model overflows f32 inside the load range",
+                ));
+            }
+        }
         Ok(Coeffs {
             params,
             general,
@@ -171,6 +182,27 @@ fn check_finite(p: &Params) -> Result<(), Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_load_range_whose_f32_model_overflows_is_refused() {
+        // Found by fuzz `effects`: a calibrated range up to 1.9e31 N passed
+        // the f64 shape check, and the tracker's f32 model there was NaN.
+        let mut p = Params::DEFAULT;
+        p.max_load_n = 1.9e31;
+        p.root_regression_per_step = 0.0;
+        p.max_regression_per_step = 0.0;
+        p.c_growth_per_step = 1e-30;
+        match Coeffs::new(p) {
+            Err(_) => {}
+            Ok(c) => {
+                let m = c.load_model_clamped(p.max_load_n);
+                assert!(m.root_contraction().is_finite(), "{m:?}");
+            }
+        }
+        // Every accepted range evaluates finitely at its ends.
+        let c = Coeffs::new(Params::DEFAULT).unwrap();
+        assert!(c.load_model_clamped(600.0).root_contraction().is_finite());
+    }
 
     #[test]
     fn default_params_validate() {

@@ -186,6 +186,26 @@ impl FamilyF32 {
         )
     }
 
+    /// Whether the model this builds at `load_n` has finite coefficients
+    /// and a non-empty stroke in `f32` (the `f64` family can hold values
+    /// whose `f32` evaluation overflows: fuzz `effects` found a calibrated
+    /// range up to 1.9·10³¹ N whose model was NaN on the chip's path).
+    pub(crate) fn model_is_finite(&self, load_n: f32) -> bool {
+        let m = self.model_without_tables(load_n);
+        [
+            m.root,
+            m.max_contraction,
+            m.a,
+            m.b,
+            m.c,
+            m.centre,
+            m.ellipse_k2,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+            && m.max_contraction > m.root
+    }
+
     /// The complete model at `load_n` (clamped), tables built at once.
     pub(crate) fn model(&self, load_n: f32) -> LoadModel {
         let mut m = self.model_without_tables(load_n);

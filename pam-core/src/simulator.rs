@@ -96,7 +96,8 @@ impl<const N: usize> Simulator<N> {
     }
 
     /// Feed one sample; returns the predicted contraction (fraction of rest
-    /// length), finite and within the active model's stroke.
+    /// length), finite and within [`Self::stroke`] (the active model's stroke,
+    /// its ends moved by a constraint shape's end terms).
     ///
     /// A non-finite pressure holds the last finite one; a non-finite load is
     /// ignored by the tracker; a non-finite, backwards or longer than
@@ -207,19 +208,38 @@ impl<const N: usize> Simulator<N> {
             None => (x_static, x_clamped),
         };
         let x = match &self.effects.creep {
-            Some(c) => clamp(
-                c.step(
-                    &mut self.creep,
-                    x_static,
-                    if dt_ok { dt_s } else { f32::NAN },
-                ),
-                root,
-                max,
-            ),
+            Some(c) => {
+                // Within the stroke the shape's end terms shifted.
+                let (lo, hi) = self.stroke();
+                clamp(
+                    c.step(
+                        &mut self.creep,
+                        x_static,
+                        if dt_ok { dt_s } else { f32::NAN },
+                    ),
+                    lo,
+                    hi,
+                )
+            }
             None => x_clamped,
         };
         self.last_output = x;
         x
+    }
+
+    /// The range [`Self::step`]'s prediction lies in: the active model's
+    /// stroke `[R_i, Rx_i]`, its ends moved by the constraint shape's
+    /// stroke-end terms at the active load when the model has them.
+    pub fn stroke(&self) -> (f32, f32) {
+        let model = self.tracker.model();
+        let (root, max) = (model.root_contraction(), model.max_contraction());
+        match &self.effects.shape {
+            Some(s) => {
+                let s = s.at_load(self.coeffs.params(), self.tracker.load_n());
+                (s.apply(model, root), s.apply(model, max))
+            }
+            None => (root, max),
+        }
     }
 
     /// The branch in use.
