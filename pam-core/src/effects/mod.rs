@@ -5,10 +5,10 @@
 //! | effect | what it adds | parameters |
 //! |---|---|---|
 //! | [`NonLocalMemory`] | minor loops closing at the previous reversal, with wiping-out | `shape`, `merge_span` |
-//! | [`RateDependence`] | ellipse height grows with a power of the pressure rate | `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s` |
+//! | [`RateDependence`] | ellipse height grows with a power of the pressure rate, saturating at a rate | `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s`, `max_rate_mpa_per_s` |
 //! | [`Creep`] | slow first-order relaxation after pressure steps | `gain`, `time_constant_s` |
 //! | [`LoadDependentWidth`] | ellipse height linear in load | `scale_at_min_load`, `scale_per_step` |
-//! | [`ConstraintShape`] | a static curve outside the cubic family: a monotone correction along each load's stroke, both branches alike | `bulge`, `tilt` |
+//! | [`ConstraintShape`] | a static curve outside the cubic family: a monotone correction along each load's stroke, both branches alike, and its ends moved with load | `bulge`, `tilt` (and per load step), `root_shift`, `end_shift` (and per load step, per squared load step) |
 //!
 //! All are `no_std`, allocation-free, and panic-free per sample; the memory
 //! holds at most `N` reversal points (a const generic).
