@@ -360,16 +360,11 @@ pub fn simulate_text(
     effects: &pam_core::Effects,
 ) -> String {
     let sum = simulate::summary(sim);
-    let named: Vec<&str> = [
-        (effects.memory.is_some(), "non_local_memory"),
-        (effects.rate.is_some(), "rate_dependence"),
-        (effects.creep.is_some(), "creep"),
-        (effects.width.is_some(), "load_dependent_width"),
-        (effects.shape.is_some(), "constraint_shape"),
-    ]
-    .into_iter()
-    .filter_map(|(on, name)| on.then_some(name))
-    .collect();
+    let named: Vec<&str> = diagnose::EffectKind::ALL
+        .into_iter()
+        .filter(|k| k.is_on(effects))
+        .map(diagnose::EffectKind::name)
+        .collect();
     let with = if named.is_empty() {
         String::from("the paper's model")
     } else {

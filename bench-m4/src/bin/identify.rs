@@ -47,7 +47,7 @@ use nalgebra::{DMatrix, DVector};
 use pam_core::effects::{Effects, NonLocalMemory};
 use pam_core::Simulator;
 use pam_core::{Coeffs, Params, TrackerConfig};
-use pam_lab::data::{Record, Sample};
+use pam_lab::data::Sample;
 use pam_lab::fit::{heldout_mask, FitConfig, Holdout};
 use pam_lab::split::{split_branches, SplitConfig};
 
@@ -387,18 +387,13 @@ fn params_src(p: &Params) -> String {
 
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let run = host_sim::characterisation_run(SEED);
-    let samples: Vec<Sample> = run
-        .iter()
-        .map(|s| Sample {
-            t_s: s.t_s,
-            load_n: s.load_n,
-            pressure_mpa: s.pressure_mpa,
-            contraction: s.contraction,
-        })
-        .collect();
+    let record = host_sim::to_record(
+        "host_sim::characterisation_run(1)",
+        &host_sim::characterisation_run(SEED),
+    );
+    let samples = &record.samples;
     let holdout = Holdout::EveryKthCycle(4);
-    let split = split_branches(&samples, &SplitConfig::default());
+    let split = split_branches(samples, &SplitConfig::default());
     let heldout = heldout_mask(holdout, &split.cycle);
     let n_test = heldout.iter().filter(|&&h| h).count();
     eprintln!(
@@ -409,7 +404,6 @@ fn main() {
     );
 
     // pam-core: pam-lab's fit on the same split.
-    let record = Record::from_samples("host_sim::characterisation_run(1)", samples.clone());
     let cfg = FitConfig {
         holdout,
         ..FitConfig::default()
@@ -429,7 +423,7 @@ fn main() {
         &coeffs,
         &pam_core::Effects::NONE,
         TrackerConfig::DEFAULT_PRESSURE,
-        &samples,
+        samples,
     );
     let mut paper = Errors::default();
     for (s, &h) in sim.iter().zip(&heldout) {
@@ -439,12 +433,12 @@ fn main() {
     // Non-local memory: shape chosen on the training samples.
     let (shape, memory) = MEMORY_SHAPES
         .iter()
-        .map(|&sh| (sh, memory_errors(&coeffs, sh, &samples, &heldout)))
+        .map(|&sh| (sh, memory_errors(&coeffs, sh, samples, &heldout)))
         .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
         .expect("shapes");
 
     // Baselines.
-    let pi = identify_pi(&samples, &heldout);
+    let pi = identify_pi(samples, &heldout);
     let mut pi_err = Errors::default();
     let mut m = PrandtlIshlinskii::new(
         &pi,
@@ -458,13 +452,13 @@ fn main() {
     let (gpi, gpi_err) = GPI_MAX_THRESHOLDS_MPA
         .iter()
         .map(|&r| {
-            let t = identify_gpi(&samples, &heldout, r);
-            let e = gpi_errors(&t, &samples, &heldout);
+            let t = identify_gpi(samples, &heldout, r);
+            let e = gpi_errors(&t, samples, &heldout);
             (t, e)
         })
         .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
         .expect("thresholds");
-    let pr = identify_preisach(&samples, &heldout);
+    let pr = identify_preisach(samples, &heldout);
     let mut pr_err = Errors::default();
     let mut m = Preisach::new(
         &pr,

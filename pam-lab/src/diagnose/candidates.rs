@@ -197,7 +197,8 @@ impl EffectKind {
         e
     }
 
-    pub(super) fn is_on(self, e: &Effects) -> bool {
+    /// Whether `e` has this effect on.
+    pub fn is_on(self, e: &Effects) -> bool {
         match self {
             EffectKind::NonLocalMemory => e.memory.is_some(),
             EffectKind::RateDependence => e.rate.is_some(),
