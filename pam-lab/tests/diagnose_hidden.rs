@@ -36,6 +36,15 @@ fn report(plant: Plant) -> &'static DiagnoseReport {
 fn names(plant: Plant) -> &'static DiagnoseReport {
     let r = report(plant);
     assert_eq!(r.named, plant.expected_name(), "{plant:?}");
+    // Nothing beyond the plant's own effects (the creep plant used to get
+    // a false second one: a rescaled ellipse that was the base refit's
+    // gain, not the effect's).
+    assert_eq!(
+        r.effects_added.len(),
+        plant.expected_effects().len(),
+        "{plant:?}: {:?}",
+        r.effects_added
+    );
     if plant == Plant::None {
         assert!(r.effects_added.is_empty(), "{:?}", r.effects_added);
         assert_eq!(r.rms_after, r.rms_before);

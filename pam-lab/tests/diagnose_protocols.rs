@@ -45,6 +45,12 @@ fn named_first_under_protocol_b(plant: Plant) -> &'static DiagnoseReport {
         "{plant:?}: {:?}",
         r.effects_added
     );
+    assert_eq!(
+        r.effects_added.len(),
+        plant.expected_effects().len(),
+        "{plant:?}: {:?}",
+        r.effects_added
+    );
     r
 }
 
