@@ -155,6 +155,11 @@ enum Command {
         out: PathBuf,
         #[command(flatten)]
         fit: FitOptions,
+        /// Most effects added, one per round, 0–5 (default 2; each round
+        /// fits every remaining candidate, so a round costs about as much
+        /// as the first).
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(0..=5))]
+        max_effects: Option<u8>,
         /// Do not draw residual.png and loops.png.
         #[arg(long)]
         no_plot: bool,
@@ -207,11 +212,13 @@ fn main() -> ExitCode {
             data,
             out,
             fit,
+            max_effects,
             no_plot,
             common,
         } => {
             let cfg = DiagnoseConfig {
                 fit: fit.config(Holdout::None),
+                max_effects: max_effects.map_or(DiagnoseConfig::default().max_effects, usize::from),
                 ..DiagnoseConfig::default()
             };
             run_diagnose(&data, &out, &cfg, !no_plot, common)

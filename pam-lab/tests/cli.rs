@@ -311,6 +311,36 @@ fn diagnose_writes_its_report_plots_and_model_at_once() {
     assert_eq!(coeffs.params(), &final_params);
 }
 
+#[test]
+fn diagnose_with_no_rounds_reports_the_refitted_paper_model() {
+    let dir = tempfile::tempdir().unwrap();
+    write_record(&dir.path().join("rig.csv"), &[100.0, 200.0, 300.0]);
+    let out = pam_lab_in(
+        dir.path(),
+        &[
+            "diagnose",
+            "rig.csv",
+            "-o",
+            "diag",
+            "--max-effects",
+            "0",
+            "--no-plot",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("diag/report.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["named"], "none", "{json}");
+    assert_eq!(json["rounds"].as_array().map(Vec::len), Some(0), "{json}");
+    assert_eq!(json["rms_after"], json["rms_before"], "{json}");
+    assert!(!dir.path().join("diag/residual.png").exists());
+}
+
 /// `simulate` runs the effects a model file carries (a `diagnose` output),
 /// from JSON and from the blob alike, and says which it ran.
 #[test]

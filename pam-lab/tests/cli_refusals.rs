@@ -835,6 +835,15 @@ fn simulate_semicolon_separated() {
 // ---- diagnose ----
 
 #[test]
+fn diagnose_max_effects_out_of_range() {
+    refused(
+        &[("bad.csv", csv(good_csv()))],
+        &["diagnose", "bad.csv", "-o", "diag", "--max-effects", "6"],
+        &["invalid value '6' for '--max-effects <N>': 6 is not in 0..=5"],
+    );
+}
+
+#[test]
 fn diagnose_too_few_samples() {
     let rows: Vec<String> = good_rows().into_iter().take(60).collect();
     diagnose_refuses(
