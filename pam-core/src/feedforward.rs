@@ -269,6 +269,8 @@ impl<const N: usize> InverseState<N> {
 struct MemoryState<const N: usize> {
     stack: ReversalStack<N>,
     extreme: Option<Reversal>,
+    /// The offset scale at `extreme` (the rate law's factor there).
+    extreme_scale: f32,
     /// The desired (output) contraction at `extreme`: the set-point backs
     /// off from the extreme in its own terms (creep makes the model
     /// contraction move back and forth under a monotone set-point).
@@ -319,7 +321,7 @@ impl<const N: usize> MemoryState<N> {
         self.rebuilt_loop = false;
         if branch_switch {
             if let Some(r) = self.extreme.take() {
-                self.stack.push(r);
+                self.stack.push_at_scale(r, self.extreme_scale);
             }
         }
         if let Some(e) = self.extreme {
@@ -330,7 +332,7 @@ impl<const N: usize> MemoryState<N> {
             if backing_off {
                 if !self.trial_valid {
                     self.trial = self.stack;
-                    self.trial.push(e);
+                    self.trial.push_at_scale(e, self.extreme_scale);
                     self.trial_valid = true;
                 }
                 self.rebuilt_loop = !self.trial.has_cached_loop();
@@ -364,6 +366,7 @@ impl<const N: usize> MemoryState<N> {
             pressure_mpa: p_mpa,
             contraction: x_model,
         });
+        self.extreme_scale = offset_scale;
         self.extreme_ref = x_ref;
         p_mpa
     }

@@ -37,6 +37,8 @@ pub struct Simulator<const N: usize> {
     last_pressure_mpa: f32,
     /// Pressure and static contraction at the extreme of the current sweep.
     extreme: Option<Reversal>,
+    /// The offset scale at the extreme (the rate law's factor there).
+    extreme_scale: f32,
     last_output: f32,
     /// The branch in use (the tracker's, or the caller's in
     /// [`Simulator::step_on_branch`]).
@@ -65,6 +67,7 @@ impl<const N: usize> Simulator<N> {
             last_t_s: None,
             last_pressure_mpa: 0.0,
             extreme: None,
+            extreme_scale: 1.0,
             last_output,
             branch: Branch::Contraction,
         })
@@ -172,7 +175,7 @@ impl<const N: usize> Simulator<N> {
             Some(blend) => {
                 if switched {
                     if let Some(r) = self.extreme {
-                        self.stack.push(r);
+                        self.stack.push_at_scale(r, self.extreme_scale);
                     }
                     self.extreme = None;
                     self.stack.invalidate();
@@ -195,6 +198,7 @@ impl<const N: usize> Simulator<N> {
                 pressure_mpa: p,
                 contraction: x_static,
             });
+            self.extreme_scale = scale;
         }
 
         // The static curve's correction along the stroke (after the

@@ -224,6 +224,9 @@ struct Segment {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReversalStack<const N: usize> {
     points: [Reversal; N],
+    /// The offset scale each point was recorded at (NaN: not known, the
+    /// point is never rescaled; see [`ReversalStack::push_at_scale`]).
+    scales: [f32; N],
     len: usize,
     segment: Option<Segment>,
 }
@@ -232,6 +235,7 @@ impl<const N: usize> Default for ReversalStack<N> {
     fn default() -> Self {
         ReversalStack {
             points: [Reversal::default(); N],
+            scales: [f32::NAN; N],
             len: 0,
             segment: None,
         }
@@ -253,18 +257,97 @@ impl<const N: usize> ReversalStack<N> {
     /// Push a reversal; non-finite points are refused; when full the oldest
     /// point is dropped. `N = 0` remembers nothing.
     pub fn push(&mut self, r: Reversal) {
+        self.push_at_scale(r, f32::NAN);
+    }
+
+    /// [`Self::push`] a point recorded where the ellipse offset was scaled by
+    /// `offset_scale` (a rate law's factor at that moment). A minor loop at
+    /// another scale starts from (or heads for) the point moved with its
+    /// loop: at the same pressure, the same fraction of the way between the
+    /// two branches (`φ = (p − CM(x))/(scale·y_hys(x))`, eqs. 25/26 with the
+    /// offset scaled). Without this a turning point recorded slowly (a
+    /// reversal is where the pressure rate passes through zero) kept its
+    /// contraction while the rate law widened the loop around it, and the
+    /// memory drove the curve up to 0.03 off the rate law's branches.
+    pub fn push_at_scale(&mut self, r: Reversal, offset_scale: f32) {
         if !(r.pressure_mpa.is_finite() && r.contraction.is_finite()) || N == 0 {
             return;
         }
         if self.len >= N {
             self.points.copy_within(1.., 0);
+            self.scales.copy_within(1.., 0);
             self.len = N - 1;
         }
-        if let Some(slot) = self.points.get_mut(self.len) {
+        if let (Some(slot), Some(scale)) =
+            (self.points.get_mut(self.len), self.scales.get_mut(self.len))
+        {
             *slot = r;
+            *scale = offset_scale;
             self.len += 1;
         }
         self.segment = None;
+    }
+
+    /// Point `i` as it lies at `offset_scale` ([`Self::push_at_scale`]):
+    /// unchanged when recorded at that scale or without one. `on` is the
+    /// branch it was recorded on, which places it when its own scale was
+    /// too small to tell the branches apart.
+    fn point_at_scale(
+        &self,
+        i: usize,
+        model: &LoadModel,
+        on: Branch,
+        offset_scale: f32,
+        ends: Ends,
+    ) -> Option<Reversal> {
+        let r = *self.points.get(i)?;
+        let recorded = *self.scales.get(i)?;
+        if !recorded.is_finite() || recorded.to_bits() == offset_scale.to_bits() {
+            return Some(r);
+        }
+        let recorded = clamp(recorded, 0.0, super::MAX_OFFSET_SCALE);
+        let offset = recorded * model.offset_mpa(r.contraction);
+        let fraction = if offset.abs() > 1e-9 {
+            clamp(
+                (r.pressure_mpa - model.constraint_pressure_mpa(r.contraction)) / offset,
+                -1.0,
+                1.0,
+            )
+        } else {
+            on.offset_sign()
+        };
+        let k = fraction * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+        let branch = if k >= 0.0 {
+            Branch::Contraction
+        } else {
+            Branch::Expansion
+        };
+        let x = ends.solve(model, r.pressure_mpa, branch, k.abs(), Some(r.contraction));
+        Some(Reversal {
+            pressure_mpa: r.pressure_mpa,
+            contraction: if x.is_finite() { x } else { r.contraction },
+        })
+    }
+
+    /// The top point and the one below, as they lie at `offset_scale` for
+    /// a minor loop on `branch` ([`Self::point_at_scale`]): the top one was
+    /// recorded on the other branch, the one below on this one.
+    fn top2_at_scale(
+        &self,
+        model: &LoadModel,
+        branch: Branch,
+        offset_scale: f32,
+        ends: Ends,
+    ) -> (Option<Reversal>, Option<Reversal>) {
+        let top = self
+            .len
+            .checked_sub(1)
+            .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
+        let below = self
+            .len
+            .checked_sub(2)
+            .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
+        (top, below)
     }
 
     /// Whether the top minor loop is cached (then [`Self::contraction`] and
@@ -332,8 +415,7 @@ impl<const N: usize> ReversalStack<N> {
         offset_scale: f32,
         ends: Ends,
     ) -> Option<Segment> {
-        let (origin, target) = self.top2();
-        let origin = origin?;
+        let origin_recorded = self.top2().0?;
         let scale_bits = offset_scale.to_bits();
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
@@ -354,6 +436,8 @@ impl<const N: usize> ReversalStack<N> {
                 && s.merge_bits == merge_bits
             {
                 let warm = Some((s.b_r, s.b_t));
+                let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends);
+                let origin = origin.unwrap_or(origin_recorded);
                 let s = Segment::new(
                     blend,
                     model,
@@ -368,6 +452,8 @@ impl<const N: usize> ReversalStack<N> {
                 return Some(s);
             }
         }
+        let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends);
+        let origin = origin.unwrap_or(origin_recorded);
         let s = Segment::new(
             blend,
             model,
@@ -520,8 +606,10 @@ impl<const N: usize> ReversalStack<N> {
             }
             len -= 2;
         }
-        let origin = len.checked_sub(1).and_then(|i| self.points.get(i));
-        let Some(&origin) = origin else {
+        let origin = len
+            .checked_sub(1)
+            .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
+        let Some(origin) = origin else {
             return branch_pressure_mpa(model, x_ref, branch, offset_scale);
         };
         let blend = params.blend_coeffs();
@@ -532,7 +620,9 @@ impl<const N: usize> ReversalStack<N> {
                 None => return branch_pressure_mpa(model, x_ref, branch, offset_scale),
             }
         } else {
-            let target = len.checked_sub(2).and_then(|i| self.points.get(i)).copied();
+            let target = len
+                .checked_sub(2)
+                .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
             Segment::new(
                 blend,
                 model,
