@@ -267,6 +267,18 @@ impl<const N: usize> ReversalStack<N> {
         self.segment = None;
     }
 
+    /// `self` becomes `other` with `r` pushed ([`Self::push`] on a copy),
+    /// copying only `other`'s remembered points: not the whole capacity,
+    /// nor its cached loop, which the push forgets.
+    pub(crate) fn set_pushed(&mut self, other: &Self, r: Reversal) {
+        let len = other.len.min(N);
+        for (to, from) in self.points.iter_mut().zip(&other.points).take(len) {
+            *to = *from;
+        }
+        self.len = len;
+        self.push(r);
+    }
+
     /// Whether the top minor loop is cached (then [`Self::contraction`] and
     /// [`Self::inverse_pressure_mpa`] on it skip the two branch inverses of
     /// its ends, as long as branch, model and offset scale stay the same).
