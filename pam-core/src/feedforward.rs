@@ -12,7 +12,9 @@
 //!    ([`Creep::static_contraction`]), clamped to the stroke; the lag then
 //!    advances with it as the model's does;
 //! 2. shape: the model's contraction whose corrected value that is
-//!    ([`ConstraintShape::model_contraction`] at the active load);
+//!    ([`ConstraintShape::model_contraction`][model_contraction] at the
+//!    active load, through the [`ShapeInverse`] the state keeps for that
+//!    load: made once per load switch, [`ModelInverse::shape_at_load`]);
 //! 3. the offset scale of width and rate ([`offset_scale`]), the rate from
 //!    the feedforward's own filter (the effect's [`RateState`]) of the
 //!    constraint pressure (eq. 21) at the model contraction it asked for, up
@@ -64,12 +66,14 @@
 //!     assert!((x - x_ref).abs() < 1e-4, "{k}: {x} vs {x_ref}");
 //! }
 //! ```
+//!
+//! [model_contraction]: crate::effects::ConstraintShape::model_contraction
 
 use crate::branch::Branch;
 use crate::effects::memory::branch_pressure_mpa;
 use crate::effects::{
-    ConstraintShape, Creep, CreepState, Effects, NonLocalMemory, RateState, Reversal,
-    ReversalStack, MAX_OFFSET_SCALE, MAX_STEP_S,
+    Creep, CreepState, Effects, NonLocalMemory, RateState, Reversal, ReversalStack, ShapeInverse,
+    MAX_OFFSET_SCALE, MAX_STEP_S,
 };
 use crate::error::Error;
 use crate::load_model::LoadModel;
@@ -102,7 +106,10 @@ pub struct ModelInverse {
 }
 
 /// The feedforward's own state: the reversal memory of the pressures it
-/// commanded, its rate filter of them, its creep lag.
+/// commanded, its rate filter of them, its creep lag, and the shape's
+/// inverse at the active load. A state belongs to the [`ModelInverse`] it
+/// is used with (a new inverse starts from a new or [reset](Self::reset)
+/// state).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct InverseState<const N: usize> {
     memory: MemoryState<N>,
@@ -111,6 +118,10 @@ pub struct InverseState<const N: usize> {
     /// The offset scale of the last call, minus 1 (so that the default
     /// state's 0 is the paper's scale).
     scale_minus_one: f32,
+    /// The shape at the active load ready for its inverse, with the bits
+    /// of the load and of the parameters [`ConstraintShape::at_load`]
+    /// reads (minimum load, load step) it was made for.
+    shape: Option<([u32; 3], ShapeInverse)>,
 }
 
 impl ModelInverse {
@@ -142,6 +153,33 @@ impl ModelInverse {
         self.dt_s
     }
 
+    /// The shape at `load_n` ([`ConstraintShape::at_load`](crate::effects::ConstraintShape::at_load))
+    /// ready for its inverse, `None` without the shape effect. Made when
+    /// the load (or the minimum load or load step of `params`) differs from
+    /// the last call's, that is once per load switch, and kept in `state`:
+    /// the per-period work is three comparisons. The model check's band
+    /// ([`ShapeInverse::shape`]) and [`Self::pressure_mpa`] share it.
+    #[inline]
+    pub fn shape_at_load<'s, const N: usize>(
+        &self,
+        state: &'s mut InverseState<N>,
+        params: &Params,
+        load_n: f32,
+    ) -> Option<&'s ShapeInverse> {
+        let shape = self.effects.shape.as_ref()?;
+        let key = [
+            load_n.to_bits(),
+            params.min_load_n.to_bits(),
+            params.load_step_n.to_bits(),
+        ];
+        // Element by element: `==` on the arrays calls `memcmp`.
+        let same = |k: &[u32; 3]| k[0] == key[0] && k[1] == key[1] && k[2] == key[2];
+        if !matches!(&state.shape, Some((k, _)) if same(k)) {
+            state.shape = Some((key, shape.inverse_at_load(params, load_n)));
+        }
+        state.shape.as_ref().map(|(_, s)| s)
+    }
+
     /// The pressure, in `[0, Pmax]`, at which the model with the effects
     /// produces `contraction` (clamped to `model`'s stroke, NaN → `R_i`) on
     /// `branch`, and the state's update for this period. `model` is the
@@ -165,8 +203,8 @@ impl ModelInverse {
             Some(c) => creep_input(c, &mut state.creep, x_ref, self.creep_lag_gain, root, max),
             None => x_ref,
         };
-        let x_model = match &self.effects.shape {
-            Some(s) => shape_inverse(s, params, model, load_n, x_static),
+        let x_model = match self.shape_at_load(state, params, load_n) {
+            Some(s) => s.model_contraction(model, x_static),
             None => x_static,
         };
         let scale = if self.effects.width.is_some() || self.effects.rate.is_some() {
@@ -218,17 +256,6 @@ fn creep_input(
     u
 }
 
-#[inline]
-fn shape_inverse(
-    s: &ConstraintShape,
-    params: &Params,
-    model: &LoadModel,
-    load_n: f32,
-    x: f32,
-) -> f32 {
-    s.at_load(params, load_n).model_contraction(model, x)
-}
-
 impl<const N: usize> InverseState<N> {
     /// Forget everything: memory, rate filter, creep lag (a restart after a
     /// fault: the safe state vents or holds the muscle, so none of it
@@ -252,7 +279,7 @@ impl<const N: usize> InverseState<N> {
     /// The memory's reversal points `(pressure, model contraction)`, oldest
     /// first.
     pub fn reversals(&self) -> &[Reversal] {
-        self.memory.stack.points()
+        self.memory.stack().points()
     }
 
     /// The last period computed a minor loop's ends (two branch inverses)
@@ -267,7 +294,12 @@ impl<const N: usize> InverseState<N> {
 /// next reversal's turning point).
 #[derive(Clone, Copy, Debug, Default)]
 struct MemoryState<const N: usize> {
-    stack: ReversalStack<N>,
+    /// The memory and the trial (below), in the order `flip` says: at a
+    /// reversal that the trial anticipated, the trial becomes the memory
+    /// by flipping it, without copying and with its minor loop cached.
+    stacks: (ReversalStack<N>, ReversalStack<N>),
+    /// `stacks.1` is the memory, `stacks.0` the trial.
+    flip: bool,
     extreme: Option<Reversal>,
     /// The offset scale at `extreme` (the rate law's factor there).
     extreme_scale: f32,
@@ -275,9 +307,8 @@ struct MemoryState<const N: usize> {
     /// off from the extreme in its own terms (creep makes the model
     /// contraction move back and forth under a monotone set-point).
     extreme_ref: f32,
-    /// The memory with `extreme` pushed, kept while the set-point backs off
-    /// from it (so its minor loop stays cached); valid while `trial_valid`.
-    trial: ReversalStack<N>,
+    /// Whether the trial is the memory with `extreme` pushed, kept while
+    /// the set-point backs off from it (so its minor loop stays cached).
     trial_valid: bool,
     /// The last feedforward computed a minor loop's ends (two branch
     /// inverses) instead of using the cached loop.
@@ -285,8 +316,22 @@ struct MemoryState<const N: usize> {
 }
 
 impl<const N: usize> MemoryState<N> {
+    /// The memory.
+    fn stack(&self) -> &ReversalStack<N> {
+        if self.flip {
+            &self.stacks.1
+        } else {
+            &self.stacks.0
+        }
+    }
+
+    /// The memory and the trial.
+    fn stack_and_trial(&mut self) -> (&mut ReversalStack<N>, &mut ReversalStack<N>) {
+        memory_and_trial(&mut self.stacks, self.flip)
+    }
+
     fn clear(&mut self) {
-        self.stack.clear();
+        self.stack_and_trial().0.clear();
         self.extreme = None;
         self.trial_valid = false;
         self.rebuilt_loop = false;
@@ -303,10 +348,12 @@ impl<const N: usize> MemoryState<N> {
     /// deadband (up to 0.02 MPa where a minor loop is steep). So while the
     /// set-point is back from the extreme the feedforward already follows
     /// the curve the reversal will start, a trial copy of the memory with
-    /// the extreme pushed, on the opposite branch; at the switch the real
-    /// memory takes the same push and the feedforward continues without a
-    /// step. If the set-point turns again first, that curve passes through
-    /// the extreme, so the return to the old sweep is continuous too.
+    /// the extreme pushed, on the opposite branch; at the switch the trial
+    /// becomes the memory (the same points as the memory with the same
+    /// push, and its minor loop already computed) and the feedforward
+    /// continues without a step. If the set-point turns again first, that
+    /// curve passes through the extreme, so the return to the old sweep is
+    /// continuous too.
     #[allow(clippy::too_many_arguments)]
     fn feedforward_mpa(
         &mut self,
@@ -321,7 +368,15 @@ impl<const N: usize> MemoryState<N> {
         self.rebuilt_loop = false;
         if branch_switch {
             if let Some(r) = self.extreme.take() {
-                self.stack.push_at_scale(r, self.extreme_scale);
+                if self.trial_valid {
+                    // The trial is the memory with `r` pushed (the memory
+                    // and the extreme have not changed since it was made).
+                    self.flip = !self.flip;
+                    self.trial_valid = false;
+                } else {
+                    let scale = self.extreme_scale;
+                    self.stack_and_trial().0.push_at_scale(r, scale);
+                }
             }
         }
         if let Some(e) = self.extreme {
@@ -330,13 +385,15 @@ impl<const N: usize> MemoryState<N> {
                 Branch::Expansion => x_ref > self.extreme_ref,
             };
             if backing_off {
-                if !self.trial_valid {
-                    self.trial = self.stack;
-                    self.trial.push_at_scale(e, self.extreme_scale);
-                    self.trial_valid = true;
+                let make = !self.trial_valid;
+                self.trial_valid = true;
+                let scale = self.extreme_scale;
+                let (stack, trial) = memory_and_trial(&mut self.stacks, self.flip);
+                if make {
+                    trial.set_pushed(stack, e, scale);
                 }
-                self.rebuilt_loop = !self.trial.has_cached_loop();
-                return self.trial.feedforward_pressure_mpa(
+                self.rebuilt_loop = !trial.has_cached_loop();
+                return trial.feedforward_pressure_mpa(
                     params,
                     model,
                     x_model,
@@ -347,20 +404,20 @@ impl<const N: usize> MemoryState<N> {
         }
         // The memory moves on (wipe-out, new extreme): the trial is stale.
         self.trial_valid = false;
-        let before = self.stack.points().len();
-        let cached = self.stack.has_cached_loop();
-        let p_mpa = if self.stack.points().is_empty() {
+        let stack = memory_and_trial(&mut self.stacks, self.flip).0;
+        let before = stack.points().len();
+        let cached = stack.has_cached_loop();
+        let p_mpa = if stack.points().is_empty() {
             // No reversal remembered: `x(p)` is the branch inverse, whose
             // inverse is the forward model, eqs. (25)/(26).
             branch_pressure_mpa(model, x_model, branch, offset_scale)
         } else {
-            self.stack
-                .feedforward_pressure_mpa(params, model, x_model, branch, offset_scale)
+            stack.feedforward_pressure_mpa(params, model, x_model, branch, offset_scale)
         };
-        self.stack.wipe_out(p_mpa, branch);
+        stack.wipe_out(p_mpa, branch);
         // A loop's ends were computed unless the cached loop served (a
         // closed loop, popped here, was evaluated afresh).
-        self.rebuilt_loop = before > 0 && (!cached || self.stack.points().len() < before);
+        self.rebuilt_loop = before > 0 && (!cached || stack.points().len() < before);
         // At or beyond the sweep's extreme: the turning point of the next reversal.
         self.extreme = Some(Reversal {
             pressure_mpa: p_mpa,
@@ -369,5 +426,18 @@ impl<const N: usize> MemoryState<N> {
         self.extreme_scale = offset_scale;
         self.extreme_ref = x_ref;
         p_mpa
+    }
+}
+
+/// The memory and the trial of [`MemoryState`]'s `stacks` for its `flip`.
+fn memory_and_trial<const N: usize>(
+    stacks: &mut (ReversalStack<N>, ReversalStack<N>),
+    flip: bool,
+) -> (&mut ReversalStack<N>, &mut ReversalStack<N>) {
+    let (a, b) = stacks;
+    if flip {
+        (b, a)
+    } else {
+        (a, b)
     }
 }

@@ -116,12 +116,12 @@ impl Law {
 
     /// How the feedforward's model widens the model check's band now
     /// ([`ModelBand`]): the offset its width and rate added on the last
-    /// period, its shape at `load_n`.
-    pub fn model_band(&self, params: &Params, model: &LoadModel, load_n: f32) -> ModelBand {
+    /// period, its shape at `load_n` (made once per load and kept with the
+    /// feedforward's state, which inverts the same shape).
+    pub fn model_band(&mut self, params: &Params, model: &LoadModel, load_n: f32) -> ModelBand {
         let Some(inv) = &self.inverse else {
             return ModelBand::default();
         };
-        let e = inv.effects();
         let s = self.state.offset_scale();
         let extra_offset_mpa = if s > 1.0 {
             (s - 1.0) * model.ellipse_height_mpa()
@@ -130,7 +130,9 @@ impl Law {
         };
         ModelBand {
             extra_offset_mpa,
-            shape: e.shape.map(|s| s.at_load(params, load_n)),
+            shape: inv
+                .shape_at_load(&mut self.state, params, load_n)
+                .map(|s| *s.shape()),
         }
     }
 

@@ -373,16 +373,12 @@ impl Controller {
     #[inline(always)]
     fn update_inline(&mut self, sample: &Sample, desired_contraction: f32) -> Step {
         let step = self.compute(sample, desired_contraction);
-        if !self.tracker.inverse_ready() {
-            // The new load's tables, after everything else of the period: a
-            // period whose memory feedforward computed a minor loop's ends
-            // (two table-free inverses) leaves the build to the next one.
-            let units = if self.law.rebuilt_loop() {
-                0
-            } else {
-                self.build_units
-            };
-            self.tracker.advance_build(units);
+        // The new load's tables, after everything else of the period: a
+        // period whose memory feedforward computed a minor loop's ends (two
+        // table-free inverses) leaves the build to the next one (and does
+        // not call it: a call for no units still costs its entry).
+        if !self.tracker.inverse_ready() && !self.law.rebuilt_loop() {
+            self.tracker.advance_build(self.build_units);
         }
         step
     }

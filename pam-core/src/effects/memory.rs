@@ -350,6 +350,22 @@ impl<const N: usize> ReversalStack<N> {
         (top, below)
     }
 
+    /// `self` becomes `other` with `r` pushed at `offset_scale`
+    /// ([`Self::push_at_scale`] on a copy), copying only `other`'s
+    /// remembered points: not the whole capacity, nor its cached loop,
+    /// which the push forgets.
+    pub(crate) fn set_pushed(&mut self, other: &Self, r: Reversal, offset_scale: f32) {
+        let len = other.len.min(N);
+        for (to, from) in self.points.iter_mut().zip(&other.points).take(len) {
+            *to = *from;
+        }
+        for (to, from) in self.scales.iter_mut().zip(&other.scales).take(len) {
+            *to = *from;
+        }
+        self.len = len;
+        self.push_at_scale(r, offset_scale);
+    }
+
     /// Whether the top minor loop is cached (then [`Self::contraction`] and
     /// [`Self::inverse_pressure_mpa`] on it skip the two branch inverses of
     /// its ends, as long as branch, model and offset scale stay the same).

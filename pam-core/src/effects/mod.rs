@@ -44,7 +44,7 @@ pub mod width;
 pub use creep::{Creep, CreepState};
 pub use memory::{NonLocalMemory, Reversal, ReversalStack};
 pub use rate::{RateDependence, RateState};
-pub use shape::ConstraintShape;
+pub use shape::{ConstraintShape, ShapeInverse};
 pub use width::LoadDependentWidth;
 
 use crate::branch::Branch;
@@ -71,6 +71,7 @@ pub const MAX_STEP_S: f32 = 1.0;
 /// A scale of exactly 1 is [`LoadModel::contraction`]; otherwise a bisection
 /// of [`SCALED_INVERSE_STEPS`] steps (bounded work). Pressure is clamped to
 /// `[0, Pmax]` (NaN → 0); the scale to `[0, MAX_OFFSET_SCALE]` (NaN → 0).
+#[inline]
 pub fn branch_contraction(
     model: &LoadModel,
     pressure_mpa: f32,
@@ -80,17 +81,38 @@ pub fn branch_contraction(
     if offset_scale == 1.0 {
         return model.contraction(pressure_mpa, branch);
     }
+    scaled_branch_contraction(model, pressure_mpa, branch, offset_scale)
+}
+
+/// [`branch_contraction`]'s bisection (out of line: the scale of 1, the
+/// table inverse, is the common path of its callers).
+#[inline(never)]
+fn scaled_branch_contraction(
+    model: &LoadModel,
+    pressure_mpa: f32,
+    branch: Branch,
+    offset_scale: f32,
+) -> f32 {
     let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
     let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     let (mut lo, mut hi) = (model.root_contraction(), model.max_contraction());
-    for _ in 0..SCALED_INVERSE_STEPS {
+    let mut step = || {
         let mid = 0.5 * (lo + hi);
-        let g = model.constraint_pressure_mpa(mid) + k * model.offset_mpa(mid);
-        if g <= p {
+        // `constraint_pressure_mpa(mid) + k·offset_mpa(mid)` bit for bit
+        // (`mid` is inside the stroke), without their clamps.
+        if model.branch_in_stroke(mid, k) <= p {
             lo = mid;
         } else {
             hi = mid;
         }
+    };
+    // Four steps per pass: the loop's own overhead is a fifth of a step.
+    const _: () = assert!(SCALED_INVERSE_STEPS % 4 == 0);
+    for _ in 0..SCALED_INVERSE_STEPS / 4 {
+        step();
+        step();
+        step();
+        step();
     }
     clamp(
         0.5 * (lo + hi),

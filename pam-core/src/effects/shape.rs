@@ -37,9 +37,11 @@ pub const MAX_SHAPE_SLOPE: f32 = 0.9;
 /// map's slope along the stroke is within `[1 − MAX_SHAPE_SLOPE,
 /// 1 + MAX_SHAPE_SLOPE]`, so from the chord's estimate the steps converge
 /// fast: over 200 000 random shapes at the slope limit the inverse is
-/// within 2·10⁻⁶ of the stroke after these steps (test
-/// `newton_inverse_matches_a_long_bisection`), against 24 bisection steps
-/// before (about 580 instructions on the M4F per call).
+/// within 1.2·10⁻⁶ of the stroke after these steps (9.5·10⁻⁷ measured;
+/// test `newton_inverse_matches_a_long_bisection`), against 24 bisection
+/// steps before (about 580 instructions on the M4F per call; 180 now,
+/// with the shape's part of the work done once per load,
+/// [`ShapeInverse`]). Three steps are not enough (2.6·10⁻⁴).
 pub const SHAPE_INVERSE_STEPS: usize = 4;
 
 /// Parameters of the constraint-shape correction (fractions of the stroke).
@@ -212,50 +214,114 @@ impl ConstraintShape {
         )
     }
 
-    /// The slope of [`Self::map_fraction`] in `u`:
-    /// `1 + (1 − 2u)·(bulge + tilt·(2u − 1)) + 2·tilt·u·(1 − u) − root_shift + end_shift`,
-    /// at least `1 − MAX_SHAPE_SLOPE` for a validated shape at a load.
-    fn map_slope(&self, u: f32) -> f32 {
-        1.0 + (1.0 - 2.0 * u) * (self.bulge + self.tilt * (2.0 * u - 1.0))
-            + 2.0 * self.tilt * u * (1.0 - u)
-            - self.root_shift
-            + self.end_shift
-    }
-
     /// The inverse of [`Self::apply`]: the model's contraction whose
     /// corrected value is `contraction` (for a feedforward, which inverts
-    /// the model at the model's contraction). [`SHAPE_INVERSE_STEPS`]
-    /// Newton steps from the chord's estimate, each kept inside the bracket
-    /// the previous ones established (a step that leaves it bisects
-    /// instead): bounded work, and never worse than a bisection. The input
-    /// is clamped to the shifted stroke, the result is in `[R, Rx]`.
+    /// the model at the model's contraction), with the shape at the minimum
+    /// load as [`Self::apply`] has it. [`ShapeInverse::model_contraction`]
+    /// on [`ShapeInverse::new`]: a feedforward that inverts every period
+    /// keeps the [`ShapeInverse`] of the active load instead (see
+    /// [`Self::inverse_at_load`]). The input is clamped to the shifted
+    /// stroke, the result is in `[R, Rx]`.
+    pub fn model_contraction(&self, model: &LoadModel, contraction: f32) -> f32 {
+        ShapeInverse::new(*self).model_contraction(model, contraction)
+    }
+
+    /// [`Self::at_load`] ready for its inverse: what a feedforward computes
+    /// once per load switch.
+    pub fn inverse_at_load(&self, params: &Params, load_n: f32) -> ShapeInverse {
+        ShapeInverse::new(self.at_load(params, load_n))
+    }
+}
+
+/// A shape ready for its inverse: what [`ConstraintShape::model_contraction`]
+/// computes from the shape alone, done once (a feedforward keeps it per
+/// load, [`ConstraintShape::inverse_at_load`]). With `d = end_shift −
+/// root_shift` the map is
+/// `root_shift + u + u·d + u·(1 − u)·((bulge − tilt) + 2·tilt·u)` (the same
+/// map as [`ConstraintShape::apply`]'s, rounded differently) and its slope
+/// `c₁ + 2c₂u + 3c₃u²` with `c₁ = 1 + bulge − tilt + d`,
+/// `c₂ = 3·tilt − bulge`, `c₃ = −2·tilt`. The load terms are not used.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShapeInverse {
+    shape: ConstraintShape,
+    /// `end_shift − root_shift`, `bulge − tilt`, `2·tilt`.
+    d: f32,
+    bulge_minus_tilt: f32,
+    two_tilt: f32,
+    /// `c₁`, `2c₂`, `3c₃` of the slope.
+    c1: f32,
+    c2x2: f32,
+    c3x3: f32,
+    /// The map at 0 and at 1.
+    lo_end: f32,
+    hi_end: f32,
+    /// `1/(hi_end − lo_end)`, 0 for an empty span (then the steps start
+    /// at the middle).
+    inv_span: f32,
+}
+
+impl ShapeInverse {
+    /// `shape` ready for its inverse (one division).
+    pub fn new(shape: ConstraintShape) -> ShapeInverse {
+        let (b, t) = (shape.bulge, shape.tilt);
+        let d = shape.end_shift - shape.root_shift;
+        let (lo_end, hi_end) = (shape.map_fraction(0.0), shape.map_fraction(1.0));
+        let span = hi_end - lo_end;
+        ShapeInverse {
+            shape,
+            d,
+            bulge_minus_tilt: b - t,
+            two_tilt: 2.0 * t,
+            c1: 1.0 + (b - t) + d,
+            c2x2: 2.0 * (3.0 * t - b),
+            c3x3: -6.0 * t,
+            lo_end,
+            hi_end,
+            inv_span: if span > 0.0 { 1.0 / span } else { 0.0 },
+        }
+    }
+
+    /// The shape it inverts.
+    pub fn shape(&self) -> &ConstraintShape {
+        &self.shape
+    }
+
+    /// [`ConstraintShape::model_contraction`]: [`SHAPE_INVERSE_STEPS`]
+    /// Newton steps from the chord's estimate, each kept inside the
+    /// bracket the previous ones established (a step that leaves it
+    /// bisects instead): bounded work, and never worse than a bisection.
+    /// The input is clamped to the shifted stroke (NaN and infinities → its
+    /// root end), the result is in `[R, Rx]`.
     pub fn model_contraction(&self, model: &LoadModel, contraction: f32) -> f32 {
         let (r, rx) = (model.root_contraction(), model.max_contraction());
         let s = rx - r;
         if !(s > 0.0) {
             return r;
         }
-        let (lo_end, hi_end) = (self.map_fraction(0.0), self.map_fraction(1.0));
+        let (lo_end, hi_end) = (self.lo_end, self.hi_end);
         let target = if contraction.is_finite() {
             clamp((contraction - r) / s, lo_end, hi_end)
         } else {
             lo_end
         };
-        let span = hi_end - lo_end;
+        let (d, bt, t2) = (self.d, self.bulge_minus_tilt, self.two_tilt);
+        let (c1, c2x2, c3x3) = (self.c1, self.c2x2, self.c3x3);
+        // The map's constant term less the target, once.
+        let offset = self.shape.root_shift - target;
         let (mut lo, mut hi) = (0.0f32, 1.0f32);
-        let mut u = if span > 0.0 {
-            clamp((target - lo_end) / span, 0.0, 1.0)
+        let mut u = if self.inv_span > 0.0 {
+            clamp((target - lo_end) * self.inv_span, 0.0, 1.0)
         } else {
             0.5
         };
         for _ in 0..SHAPE_INVERSE_STEPS {
-            let f = self.map_fraction(u) - target;
+            let f = (u + u * d) + u * (1.0 - u) * (bt + t2 * u) + offset;
             if f <= 0.0 {
                 lo = u;
             } else {
                 hi = u;
             }
-            let slope = self.map_slope(u);
+            let slope = (c3x3 * u + c2x2) * u + c1;
             let next = u - f / slope;
             // NaN (a zero slope) and steps out of the bracket bisect.
             u = if next >= lo && next <= hi {
@@ -327,7 +393,7 @@ mod tests {
             worst = worst.max(err);
         }
         eprintln!("worst Newton inverse error: {worst:e} of the stroke");
-        assert!(worst <= 2e-6, "{worst}");
+        assert!(worst <= 1.2e-6, "{worst}");
     }
 
     fn model() -> LoadModel {
