@@ -65,9 +65,9 @@ pub const FALLBACK_BISECTION_STEPS: usize = 12;
 /// table is then as precise as `f32` allows).
 const BUILD_CONVERGED: f32 = 1e-7;
 
-/// Work units a complete [`TableBuild`] can take at most: per branch one per
-/// hull knot, and per table entry one for the bracket and up to
-/// [`BUILD_ITERATIONS`] Newton steps.
+/// Work units a complete build of a load's inverse tables can take at most:
+/// per branch one per hull knot, and per table entry one for the bracket
+/// and up to a fixed number of Newton steps.
 pub const BUILD_UNITS_MAX: usize =
     2 * (BUILD_KNOTS + (INVERSE_INTERVALS + 1) * (1 + BUILD_ITERATIONS));
 

@@ -49,6 +49,16 @@
 //!
 //! When the stack is full the oldest point is dropped (its loop then closes
 //! on the major loop instead): memory of at most `N` nested reversals.
+//!
+//! With a rate law the offset scale changes from sample to sample, and a
+//! turning point is recorded with the scale of its moment
+//! ([`ReversalStack::push_at_scale`]). A minor loop at another scale starts
+//! from (and heads for) the point moved with the loop: at the same
+//! pressure, the same fraction `φ = (p − CM(x))/(scale·y_hys(x))` of the
+//! way between the two branches (eqs. 25/26 with the offset scaled), so a
+//! point on a branch stays on it, and the loop widens and narrows with the
+//! rate as the major loop does. Two more branch inverses per new loop, only
+//! where the scale differs from the points' own.
 
 use crate::branch::Branch;
 use crate::error::Error;
@@ -289,9 +299,11 @@ impl<const N: usize> ReversalStack<N> {
     }
 
     /// Point `i` as it lies at `offset_scale` ([`Self::push_at_scale`]):
-    /// unchanged when recorded at that scale or without one. `on` is the
-    /// branch it was recorded on, which places it when its own scale was
-    /// too small to tell the branches apart.
+    /// unchanged when recorded at that scale or without one (the path
+    /// without a rate law: two loads and a compare). `on` is the branch it
+    /// was recorded on, which places it when its own scale was too small to
+    /// tell the branches apart.
+    #[inline(always)]
     fn point_at_scale(
         &self,
         i: usize,
@@ -305,34 +317,35 @@ impl<const N: usize> ReversalStack<N> {
         if !recorded.is_finite() || recorded.to_bits() == offset_scale.to_bits() {
             return Some(r);
         }
-        let recorded = clamp(recorded, 0.0, super::MAX_OFFSET_SCALE);
-        let offset = recorded * model.offset_mpa(r.contraction);
-        let fraction = if offset.abs() > 1e-9 {
-            clamp(
-                (r.pressure_mpa - model.constraint_pressure_mpa(r.contraction)) / offset,
-                -1.0,
-                1.0,
-            )
-        } else {
-            on.offset_sign()
-        };
-        let k = fraction * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
-        let branch = if k >= 0.0 {
-            Branch::Contraction
-        } else {
-            Branch::Expansion
-        };
-        let x = ends.solve(model, r.pressure_mpa, branch, k.abs(), Some(r.contraction));
-        Some(Reversal {
-            pressure_mpa: r.pressure_mpa,
-            contraction: if x.is_finite() { x } else { r.contraction },
-        })
+        Some(rescaled(r, recorded, model, on, offset_scale, ends))
     }
 
     /// The top point and the one below, as they lie at `offset_scale` for
     /// a minor loop on `branch` ([`Self::point_at_scale`]): the top one was
-    /// recorded on the other branch, the one below on this one.
+    /// recorded on the other branch, the one below on this one. When both
+    /// were recorded at this scale (or without one), [`Self::top2`] as it
+    /// is: the path without a rate law costs two compares.
+    #[inline(always)]
     fn top2_at_scale(
+        &self,
+        model: &LoadModel,
+        branch: Branch,
+        offset_scale: f32,
+        ends: Ends,
+    ) -> (Option<Reversal>, Option<Reversal>) {
+        let same = |i: Option<usize>| {
+            i.and_then(|i| self.scales.get(i))
+                .is_none_or(|s| !s.is_finite() || s.to_bits() == offset_scale.to_bits())
+        };
+        if same(self.len.checked_sub(1)) && same(self.len.checked_sub(2)) {
+            return self.top2();
+        }
+        self.top2_rescaled(model, branch, offset_scale, ends)
+    }
+
+    /// [`Self::top2_at_scale`]'s path where a point moves.
+    #[inline(never)]
+    fn top2_rescaled(
         &self,
         model: &LoadModel,
         branch: Branch,
@@ -356,11 +369,15 @@ impl<const N: usize> ReversalStack<N> {
     /// which the push forgets.
     pub(crate) fn set_pushed(&mut self, other: &Self, r: Reversal, offset_scale: f32) {
         let len = other.len.min(N);
-        for (to, from) in self.points.iter_mut().zip(&other.points).take(len) {
+        for ((to, to_scale), (from, from_scale)) in self
+            .points
+            .iter_mut()
+            .zip(self.scales.iter_mut())
+            .zip(other.points.iter().zip(&other.scales))
+            .take(len)
+        {
             *to = *from;
-        }
-        for (to, from) in self.scales.iter_mut().zip(&other.scales).take(len) {
-            *to = *from;
+            *to_scale = *from_scale;
         }
         self.len = len;
         self.push_at_scale(r, offset_scale);
@@ -622,12 +639,9 @@ impl<const N: usize> ReversalStack<N> {
             }
             len -= 2;
         }
-        let origin = len
-            .checked_sub(1)
-            .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
-        let Some(origin) = origin else {
+        if len == 0 {
             return branch_pressure_mpa(model, x_ref, branch, offset_scale);
-        };
+        }
         let blend = params.blend_coeffs();
         let seg = if len == self.len {
             // The top loop: cached between calls, as for `contraction`.
@@ -636,6 +650,13 @@ impl<const N: usize> ReversalStack<N> {
                 None => return branch_pressure_mpa(model, x_ref, branch, offset_scale),
             }
         } else {
+            // An inner loop of the stack (the top one closed here).
+            let origin = len
+                .checked_sub(1)
+                .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
+            let Some(origin) = origin else {
+                return branch_pressure_mpa(model, x_ref, branch, offset_scale);
+            };
             let target = len
                 .checked_sub(2)
                 .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
@@ -717,6 +738,43 @@ impl<const N: usize> ReversalStack<N> {
         self.wipe_out(p, branch);
         let seg = self.segment(blend, model, branch, offset_scale)?;
         Some(seg.eval(blend, model, x_branch))
+    }
+}
+
+/// `r`, recorded at offset scale `recorded`, moved to `offset_scale`: at its
+/// pressure, the same fraction of the way between the branches
+/// ([`ReversalStack::push_at_scale`]); `on` places it when `recorded` is too
+/// small to tell the branches apart. One branch inverse, as `ends` solves.
+#[inline(never)]
+fn rescaled(
+    r: Reversal,
+    recorded: f32,
+    model: &LoadModel,
+    on: Branch,
+    offset_scale: f32,
+    ends: Ends,
+) -> Reversal {
+    let recorded = clamp(recorded, 0.0, super::MAX_OFFSET_SCALE);
+    let offset = recorded * model.offset_mpa(r.contraction);
+    let fraction = if offset.abs() > 1e-9 {
+        clamp(
+            (r.pressure_mpa - model.constraint_pressure_mpa(r.contraction)) / offset,
+            -1.0,
+            1.0,
+        )
+    } else {
+        on.offset_sign()
+    };
+    let k = fraction * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+    let branch = if k >= 0.0 {
+        Branch::Contraction
+    } else {
+        Branch::Expansion
+    };
+    let x = ends.solve(model, r.pressure_mpa, branch, k.abs(), Some(r.contraction));
+    Reversal {
+        pressure_mpa: r.pressure_mpa,
+        contraction: if x.is_finite() { x } else { r.contraction },
     }
 }
 
