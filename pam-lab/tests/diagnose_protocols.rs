@@ -5,7 +5,7 @@
 //!   sinusoidal cycles, decaying oscillations with nested minor loops,
 //!   random reversals, steps, loads 80–480 N) for every single-effect plant;
 //! * two effects at once (load-dependent width with creep, memory with
-//!   rate dependence), under the examples' protocol;
+//!   rate dependence), under both protocols;
 //! * the Tondu–Lopez muscle (static shape and memory) under both.
 //!
 //! Each diagnosis takes about 10 s in a release build and over a minute in
@@ -70,12 +70,11 @@ fn second_protocol_no_effect_is_none_within_one_and_a_half_noise_floors() {
 
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
-fn second_protocol_memory_is_named() {
-    // The cut is short of a half here (26 % of the error above the noise
-    // at seed 1; DIAGNOSE.md): the smooth crossing of the plant's friction
-    // at the sinusoids' tops is not the memory's blend.
+fn second_protocol_memory_is_named_and_halves_the_error_above_the_noise() {
+    // 26 % while the base refit could not leave the edge of the valid
+    // parameters the fit ended on (DIAGNOSE.md).
     let r = named_first_under_protocol_b(Plant::NonLocalMemory);
-    assert!(r.rms_after < r.rms_before);
+    assert!(r.share_removed() >= 0.5, "{}", r.share_removed());
 }
 
 #[test]
@@ -100,7 +99,12 @@ fn second_protocol_creep_is_named_first_and_cuts_a_fifth_above_the_noise() {
 }
 
 fn both_named(plant: Plant) {
-    let r = run(&format!("a_{plant:?}"), hidden_plants::csv(plant, 1, true));
+    both_named_in(&run(&format!("a_{plant:?}"), hidden_plants::csv(plant, 1, true)), plant);
+}
+
+/// Both effects of a compound `plant` named (in either order), nothing
+/// else, and the error above the noise at least halved.
+fn both_named_in(r: &DiagnoseReport, plant: Plant) {
     let mut got = r.effects_added.clone();
     let mut want = plant.expected_effects().to_vec();
     got.sort_unstable();
@@ -119,6 +123,22 @@ fn width_and_creep_at_once_are_both_named() {
 #[cfg_attr(debug_assertions, ignore)]
 fn memory_and_rate_at_once_are_both_named() {
     both_named(Plant::MemoryAndRate);
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn memory_and_rate_at_once_are_both_named_under_the_second_protocol() {
+    // Greedy, creep (which stands in for part of the rate law's loops) or
+    // the rate law came first here, and the memory on top of it did not
+    // earn its place or left most of the error; the search over paths
+    // (pam-lab/src/diagnose/paths.rs) finds the memory first.
+    both_named_in(protocol_b(Plant::MemoryAndRate), Plant::MemoryAndRate);
+}
+
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn width_and_creep_at_once_are_both_named_under_the_second_protocol() {
+    both_named_in(protocol_b(Plant::WidthAndCreep), Plant::WidthAndCreep);
 }
 
 /// The Tondu–Lopez muscle (a static curve outside the cubic family, with

@@ -40,8 +40,11 @@ fn base_field(p: &mut Params, k: usize) -> Option<&mut f32> {
 /// Refit [`BASE_REFIT_FIELDS`] of `params` with `effects` on, on the
 /// training samples' simulated residuals: `iterations` damped Gauss–Newton
 /// steps (forward-difference Jacobian, a step is kept only when the
-/// training cost falls, the damping grows when it does not). Returns the
-/// input when nothing improves or a step leaves the valid parameters.
+/// training cost falls, the damping grows when it does not; a parameter
+/// whose forward step leaves the valid parameters is differenced
+/// backwards, one that can move neither way is held, and a step that
+/// leaves them is halved along its direction). Returns the input when
+/// nothing improves.
 pub(super) fn refit_base(
     setup: &Setup<'_>,
     params: Params,
@@ -73,46 +76,78 @@ pub(super) fn refit_base(
     let mut lambda = 1e-3;
     let m = BASE_REFIT_FIELDS.len();
     for _ in 0..iterations {
+        // The fit often ends on the edge of the valid parameters (the
+        // cubic's single real root, its monotonicity at the heaviest load):
+        // a parameter whose forward step leaves them is differenced
+        // backwards, and one that can move neither way is held.
+        let mut held = vec![false; m];
         let h: Vec<f64> = (0..m)
             .map(|k| {
                 let mut q = p;
                 let v = base_field(&mut q, k).map_or(0.0, |f| f64::from(*f));
-                1e-3 * v.abs().max(1e-2)
+                let h = 1e-3 * v.abs().max(1e-2);
+                let mut d = vec![0.0; m];
+                d[k] = h;
+                if with(&p, &d).is_some() {
+                    return h;
+                }
+                d[k] = -h;
+                if with(&p, &d).is_none() {
+                    held[k] = true;
+                }
+                -h
             })
             .collect();
-        // A step that leaves the valid parameters gives NaN residuals,
-        // and a NaN column ends the refit.
-        let jac = crate::lsq::forward_difference_jacobian(&vec![0.0; m], &h, r.len(), &|d, out| {
-            match with(&p, d).and_then(|(_, c)| train(&c)) {
-                Some(v) => out.copy_from_slice(v.as_slice()),
-                None => out.fill(f64::NAN),
+        let mut jac =
+            crate::lsq::forward_difference_jacobian(&vec![0.0; m], &h, r.len(), &|d, out| {
+                match with(&p, d).and_then(|(_, c)| train(&c)) {
+                    Some(v) => out.copy_from_slice(v.as_slice()),
+                    None => out.fill(f64::NAN),
+                }
+            });
+        for (k, held) in held.iter_mut().enumerate() {
+            if *held || jac.column(k).iter().any(|v| !v.is_finite()) {
+                *held = true;
+                jac.column_mut(k).fill(0.0);
             }
-        });
-        if jac.iter().any(|v| !v.is_finite()) {
+        }
+        if held.iter().all(|&h| h) {
             return (p, c);
         }
         let jtj = jac.transpose() * &jac;
         let jtr = jac.transpose() * &r;
         let mut improved = false;
-        for _ in 0..4 {
+        'damping: for _ in 0..4 {
             let mut a = jtj.clone();
             for k in 0..m {
-                a[(k, k)] += lambda * jtj[(k, k)].max(1e-12);
+                a[(k, k)] += if held[k] {
+                    1.0
+                } else {
+                    lambda * jtj[(k, k)].max(1e-12)
+                };
             }
             let Some(step) = a.lu().solve(&(-&jtr)) else {
                 lambda *= 10.0;
                 continue;
             };
-            if let Some((q, qc)) = with(&p, step.as_slice()) {
-                if let Some(qr) = train(&qc) {
-                    let qcost = qr.norm_squared();
-                    if qcost < cost {
-                        (p, c, r, cost) = (q, qc, qr, qcost);
-                        lambda = (lambda * 0.3).max(1e-6);
-                        improved = true;
-                        break;
+            // A step that leaves the valid parameters (the edge the fit
+            // ended on) is shortened along its direction before the
+            // damping grows.
+            let mut step = step;
+            for _ in 0..4 {
+                if let Some((q, qc)) = with(&p, step.as_slice()) {
+                    if let Some(qr) = train(&qc) {
+                        let qcost = qr.norm_squared();
+                        if qcost < cost {
+                            (p, c, r, cost) = (q, qc, qr, qcost);
+                            lambda = (lambda * 0.3).max(1e-6);
+                            improved = true;
+                            break 'damping;
+                        }
                     }
+                    break;
                 }
+                step *= 0.5;
             }
             lambda *= 10.0;
         }

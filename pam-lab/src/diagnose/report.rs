@@ -51,8 +51,12 @@ pub struct DiagnoseReport {
     pub above_noise_removed: f64,
     /// First round's candidates against the base model: name and held-out RMS.
     pub candidates: Vec<CandidateSummary>,
-    /// Every round in full.
+    /// Every round in full, of the path chosen.
     pub rounds: Vec<Round>,
+    /// Every path followed (one from each first-round earner, when more
+    /// than one earned): its effects, held-out error, and whether it was
+    /// kept ([`super::paths`]).
+    pub paths: Vec<super::PathSummary>,
     /// The base model's errors.
     pub base: ModelErrors,
     /// The final model's errors.
@@ -167,6 +171,21 @@ pub fn summary(r: &DiagnoseReport) -> String {
         match round.added {
             Some(n) => s.push_str(&format!("  -> added {n}\n")),
             None => s.push_str("  -> no candidate earns its parameters\n"),
+        }
+    }
+    if !r.paths.is_empty() {
+        s.push_str("paths followed (one from each first-round earner):\n");
+        for p in &r.paths {
+            let name = if p.effects.is_empty() {
+                "none".to_string()
+            } else {
+                p.effects.join(" then ")
+            };
+            s.push_str(&format!("  {:<46} RMS {:.5}", name, p.rms_heldout));
+            match &p.why_not {
+                Some(why) => s.push_str(&format!("  not kept: {why}\n")),
+                None => s.push('\n'),
+            }
         }
     }
     s.push_str(&format!(
