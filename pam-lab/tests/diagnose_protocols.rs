@@ -99,7 +99,10 @@ fn second_protocol_creep_is_named_first_and_cuts_a_fifth_above_the_noise() {
 }
 
 fn both_named(plant: Plant) {
-    both_named_in(&run(&format!("a_{plant:?}"), hidden_plants::csv(plant, 1, true)), plant);
+    both_named_in(
+        &run(&format!("a_{plant:?}"), hidden_plants::csv(plant, 1, true)),
+        plant,
+    );
 }
 
 /// Both effects of a compound `plant` named (in either order), nothing
