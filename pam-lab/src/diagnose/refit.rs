@@ -157,3 +157,121 @@ pub(super) fn refit_base(
     }
     (p, c)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::Sample;
+    use crate::diagnose::evaluate::simulate;
+    use pam_core::Branch;
+
+    /// `p` with refit field `k` pushed to the edge of the valid parameters
+    /// (the last valid value found by bisection between `v` and `4·v`), or
+    /// `None` when `4·v` is still valid.
+    fn at_edge(p: Params, k: usize) -> Option<Params> {
+        let set = |v: f64| -> Params {
+            let mut q = p;
+            if let Some(f) = base_field(&mut q, k) {
+                *f = v as f32;
+            }
+            q
+        };
+        let mut q = p;
+        let v0 = f64::from(*base_field(&mut q, k)?);
+        let (mut lo, mut hi) = (v0, 4.0 * v0);
+        if Coeffs::new(set(hi)).is_ok() {
+            return None;
+        }
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if Coeffs::new(set(mid)).is_ok() {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Some(set(lo))
+    }
+
+    #[test]
+    fn the_refit_leaves_the_edge_of_the_valid_parameters() {
+        // A record of the default muscle (triangles at two loads), and a
+        // base that starts where one parameter's forward step leaves the
+        // valid parameters, as `fit` often ends: the refit must still
+        // move towards the muscle (it used to stop at the first such
+        // column and return the base unchanged).
+        let truth = Params::DEFAULT;
+        let truth_coeffs = Coeffs::new(truth).unwrap();
+        let pmax = f64::from(truth.points.max_pressure_mpa);
+        let mut samples = Vec::new();
+        for (block, load) in [truth.min_load_n, truth.max_load_n].iter().enumerate() {
+            for i in 0..800 {
+                let phase = (i % 400) as f64 / 200.0;
+                let p = pmax * if phase < 1.0 { phase } else { 2.0 - phase };
+                samples.push(Sample {
+                    t_s: (block * 800 + i) as f64 * 0.02,
+                    load_n: f64::from(*load),
+                    pressure_mpa: p,
+                    contraction: 0.0,
+                });
+            }
+        }
+        let branches: Vec<Branch> = samples
+            .windows(2)
+            .map(|w| {
+                if w[1].pressure_mpa >= w[0].pressure_mpa {
+                    Branch::Contraction
+                } else {
+                    Branch::Expansion
+                }
+            })
+            .chain([Branch::Expansion])
+            .collect();
+        let tracker = super::super::tracker_config(0.001, 0.0);
+        let x = simulate(&truth_coeffs, Effects::NONE, tracker, &samples, &branches);
+        for (s, x) in samples.iter_mut().zip(x) {
+            s.contraction = x;
+        }
+        let (field, edge) = (0..BASE_REFIT_FIELDS.len())
+            .find_map(|k| at_edge(truth, k).map(|p| (k, p)))
+            .expect("some refit parameter has an edge within 4x its default");
+        let mut step = vec![0.0; BASE_REFIT_FIELDS.len()];
+        step[field] = 1e-3 * f64::from(*base_field(&mut edge.clone(), field).unwrap());
+        let mut forward = edge;
+        *base_field(&mut forward, field).unwrap() += step[field] as f32;
+        assert!(
+            Coeffs::new(forward).is_err(),
+            "{}: the forward step stays valid",
+            BASE_REFIT_FIELDS[field]
+        );
+        let edge_coeffs = Coeffs::new(edge).unwrap();
+        let n = samples.len();
+        let setup = Setup {
+            samples: &samples,
+            coeffs: edge_coeffs,
+            tracker,
+            heldout: (0..n).map(|i| i % 3 == 0).collect(),
+            train_idx: (0..n).filter(|i| i % 3 != 0).collect(),
+            regimes: super::super::regimes(&samples, &edge_coeffs, tracker),
+            branches,
+            corr_len: 1.0,
+            noise_contraction: 0.0,
+            stroke_bin: super::super::evaluate::stroke_bins(&samples),
+        };
+        let (before, _) = setup.errors(&edge_coeffs, Effects::NONE, 0);
+        let (p, c) = refit_base(&setup, edge, edge_coeffs, Effects::NONE, 3);
+        let (after, _) = setup.errors(&c, Effects::NONE, 0);
+        assert_ne!(
+            p, edge,
+            "{}: the refit did not move",
+            BASE_REFIT_FIELDS[field]
+        );
+        assert!(
+            after.rms_train < 0.8 * before.rms_train,
+            "{}: training RMS {} -> {}",
+            BASE_REFIT_FIELDS[field],
+            before.rms_train,
+            after.rms_train
+        );
+    }
+}
