@@ -135,7 +135,22 @@ fn memory_and_rate_at_once_are_both_named_under_the_second_protocol() {
     // the rate law came first here, and the memory on top of it did not
     // earn its place or left most of the error; the search over paths
     // (pam-lab/src/diagnose/paths.rs) finds the memory first.
-    both_named_in(protocol_b(Plant::MemoryAndRate), Plant::MemoryAndRate);
+    let r = protocol_b(Plant::MemoryAndRate);
+    both_named_in(r, Plant::MemoryAndRate);
+    // The report lists every path followed; the one chosen is kept and
+    // has the lowest held-out error of those kept.
+    assert!(r.paths.len() >= 2, "{:?}", r.paths);
+    let chosen = r
+        .paths
+        .iter()
+        .find(|p| p.kept && p.effects == r.effects_added)
+        .expect("the chosen path is listed");
+    assert!(r
+        .paths
+        .iter()
+        .filter(|p| p.kept)
+        .all(|p| p.rms_heldout >= chosen.rms_heldout));
+    assert_eq!(chosen.rms_heldout, r.rms_after);
 }
 
 #[test]

@@ -184,6 +184,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
             s.push_str(&format!("  {:<46} RMS {:.5}", name, p.rms_heldout));
             match &p.why_not {
                 Some(why) => s.push_str(&format!("  not kept: {why}\n")),
+                None if p.effects == r.effects_added => s.push_str("  <- chosen\n"),
                 None => s.push('\n'),
             }
         }
