@@ -235,10 +235,10 @@ mod tests {
         let (field, edge) = (0..BASE_REFIT_FIELDS.len())
             .find_map(|k| at_edge(truth, k).map(|p| (k, p)))
             .expect("some refit parameter has an edge within 4x its default");
-        let mut step = vec![0.0; BASE_REFIT_FIELDS.len()];
-        step[field] = 1e-3 * f64::from(*base_field(&mut edge.clone(), field).unwrap());
+        // The refit's own forward step, 1e-3 of the value.
         let mut forward = edge;
-        *base_field(&mut forward, field).unwrap() += step[field] as f32;
+        let value = base_field(&mut forward, field).unwrap();
+        *value += 1e-3 * *value;
         assert!(
             Coeffs::new(forward).is_err(),
             "{}: the forward step stays valid",
