@@ -103,7 +103,7 @@ pub fn identify(record: &Record) -> Result<Identified, String> {
     let fit = fit_record(record, &FitConfig::default(), &|_| {})
         .map_err(|e| format!("fit refused the record: {e}"))?;
     let paper_blob = blob_of(&fit.files).ok_or("fit wrote no model.blob")?;
-    let report = diagnose_record(record, &DiagnoseConfig::default())
+    let report = diagnose_record(record, &DiagnoseConfig::default(), &|_| {})
         .map_err(|e| format!("diagnose refused the record: {e}"))?;
     let files = pam_lab::model_file::model_files(
         &report.final_params,

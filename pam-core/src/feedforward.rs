@@ -233,6 +233,7 @@ impl ModelInverse {
                 model.constraint_pressure_mpa(x_model),
                 self.dt_s,
                 r.filter_time_s,
+                r.max_rate_mpa_per_s,
             );
         }
         p_mpa

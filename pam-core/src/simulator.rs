@@ -158,8 +158,12 @@ impl<const N: usize> Simulator<N> {
             self.extreme = None;
         }
         if let Some(r) = &self.effects.rate {
-            self.rate
-                .update(p, if dt_ok { dt_s } else { f32::NAN }, r.filter_time_s);
+            self.rate.update(
+                p,
+                if dt_ok { dt_s } else { f32::NAN },
+                r.filter_time_s,
+                r.max_rate_mpa_per_s,
+            );
         }
         let scale = self.offset_scale();
         let model = self.tracker.model();

@@ -120,7 +120,8 @@ impl<const N: usize> Reference<N> {
             scale *= w.scale(self.coeffs.params(), self.tracker.load_n());
         }
         if let Some(r) = &self.rate {
-            self.rate_state.update(p, dt_s, r.filter_time_s);
+            self.rate_state
+                .update(p, dt_s, r.filter_time_s, r.max_rate_mpa_per_s);
             scale *= r.scale(&self.rate_state);
         }
         let scale = scale.clamp(0.0, MAX_OFFSET_SCALE);

@@ -241,9 +241,10 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
 pub fn diagnose_record(
     record: &Record,
     cfg: &DiagnoseConfig,
+    progress: &dyn Fn(&str),
 ) -> Result<DiagnoseReport, DiagnoseError> {
     cfg.fit.validate()?;
-    diagnose::diagnose(record, cfg)
+    diagnose::diagnose_with_progress(record, cfg, progress)
 }
 
 /// Stage `report.json` and, when `draw`, `residual.png` and `loops.png` in

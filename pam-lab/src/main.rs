@@ -458,7 +458,7 @@ fn run_diagnose(
         "diagnosing {} samples: base fit, then each candidate effect",
         record.len()
     ));
-    let report = commands::diagnose_record(&record, cfg)?;
+    let report = commands::diagnose_record(&record, cfg, &|msg| rep.stage(msg))?;
     if draw {
         rep.stage("plotting");
     }

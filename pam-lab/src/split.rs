@@ -189,22 +189,119 @@ pub fn holdout_by_load_block(loads_n: &[f64]) -> Vec<bool> {
 /// say, every full cycle; a drawn one mixes every kind of cycle and every
 /// load into both parts. The record's first segment always trains. A
 /// record where that holds out under a tenth of the samples (few cycles)
-/// falls back to [`holdout_by_load_block`].
-pub fn holdout_by_segment(loads_n: &[f64], cycle: &[u32], k: usize) -> Vec<bool> {
+/// falls back to [`holdout_by_load_block`]. Each mask in `cover` (a regime:
+/// fast ramps, holds after a step) is then made sure to be held out as well
+/// ([`cover_regime`]). Returns the mask and, per mask in `cover`, the
+/// number of segments moved to the held-out part for it.
+pub fn holdout_by_segment(
+    loads_n: &[f64],
+    cycle: &[u32],
+    k: usize,
+    cover: &[&[bool]],
+) -> (Vec<bool>, Vec<usize>) {
+    let segment = segments(loads_n, cycle);
+    let n = segment.len();
+    let mut out: Vec<bool> = segment
+        .iter()
+        .map(|&s| s > 0 && splitmix(s) % (k.max(2) as u64) == 0)
+        .collect();
+    if (out.iter().filter(|h| **h).count() as f64) < 0.1 * n as f64 {
+        return (holdout_by_load_block(&loads_n[..n]), vec![0; cover.len()]);
+    }
+    let moved = cover
+        .iter()
+        .map(|regime| cover_regime(&mut out, &segment, loads_n, regime, k))
+        .collect();
+    (out, moved)
+}
+
+/// The segment number of every sample: a new segment starts at every cycle
+/// start and every load change of more than 1 N ([`holdout_by_segment`]).
+pub fn segments(loads_n: &[f64], cycle: &[u32]) -> Vec<u64> {
     let n = loads_n.len().min(cycle.len());
-    let k = k.max(2) as u64;
     let mut out = Vec::with_capacity(n);
     let mut segment = 0u64;
     for i in 0..n {
         if i > 0 && ((loads_n[i] - loads_n[i - 1]).abs() > 1.0 || cycle[i] != cycle[i - 1]) {
             segment += 1;
         }
-        out.push(segment > 0 && splitmix(segment) % k == 0);
-    }
-    if (out.iter().filter(|h| **h).count() as f64) < 0.1 * n as f64 {
-        return holdout_by_load_block(&loads_n[..n]);
+        out.push(segment);
     }
     out
+}
+
+/// Make sure a regime is held out too: a regime (`regime[i]`: sample `i` is
+/// in it) that lies in at least two segments but of whose samples fewer than
+/// one in `2k` are held out cannot judge the effect it shows (a record with
+/// one fast cycle per load may hold out a single fast-ramp sample). Then
+/// training segments holding it are moved to the held-out part, in the
+/// order of a fixed hash of their number, until one in `k` of its samples is
+/// held out, while at least one training segment holds it, never the first
+/// segment, and never the last training segment of a load. A regime already
+/// held out at one in `2k` leaves the mask as it is. Returns the number of
+/// segments moved.
+pub fn cover_regime(
+    heldout: &mut [bool],
+    segment: &[u64],
+    loads_n: &[f64],
+    regime: &[bool],
+    k: usize,
+) -> usize {
+    let n = heldout
+        .len()
+        .min(segment.len())
+        .min(loads_n.len())
+        .min(regime.len());
+    let k = k.max(2) as f64;
+    let Some(&last) = segment[..n].last() else {
+        return 0;
+    };
+    let segs = last as usize + 1;
+    // Per segment: samples in the regime, samples, load, held out.
+    let mut in_regime = vec![0usize; segs];
+    let mut size = vec![0usize; segs];
+    let mut load = vec![0.0f64; segs];
+    let mut held = vec![false; segs];
+    for i in 0..n {
+        let s = segment[i] as usize;
+        size[s] += 1;
+        in_regime[s] += usize::from(regime[i]);
+        load[s] = loads_n[i];
+        held[s] = heldout[i];
+    }
+    let total: usize = in_regime.iter().sum();
+    let bearing = in_regime.iter().filter(|c| **c > 0).count();
+    let mut held_in: usize = (0..segs).filter(|&s| held[s]).map(|s| in_regime[s]).sum();
+    if bearing < 2 || total == 0 || (held_in as f64) >= total as f64 / (2.0 * k) {
+        return 0;
+    }
+    let same_load = |a: f64, b: f64| (a - b).abs() <= 1.0;
+    let mut order: Vec<usize> = (1..segs)
+        .filter(|&s| !held[s] && in_regime[s] > 0)
+        .collect();
+    order.sort_by_key(|&s| splitmix(s as u64));
+    let mut training_bearing = (0..segs).filter(|&s| !held[s] && in_regime[s] > 0).count();
+    let mut moved = 0;
+    for s in order {
+        if (held_in as f64) >= total as f64 / k || training_bearing <= 1 {
+            break;
+        }
+        let load_trains_elsewhere =
+            (0..segs).any(|o| o != s && !held[o] && size[o] > 0 && same_load(load[o], load[s]));
+        if !load_trains_elsewhere {
+            continue;
+        }
+        held[s] = true;
+        held_in += in_regime[s];
+        training_bearing -= 1;
+        moved += 1;
+    }
+    if moved > 0 {
+        for i in 0..n {
+            heldout[i] = held[segment[i] as usize];
+        }
+    }
+    moved
 }
 
 /// SplitMix64's output function: a fixed, well-mixed hash of `x`.
@@ -441,7 +538,7 @@ mod tests {
         // Four loads of 30 cycles of 10 samples each.
         let loads: Vec<f64> = (0..1200).map(|i| 100.0 * (1 + i / 300) as f64).collect();
         let cycle: Vec<u32> = (0..1200).map(|i| i / 10).collect();
-        let h = holdout_by_segment(&loads, &cycle, 3);
+        let h = holdout_by_segment(&loads, &cycle, 3, &[]).0;
         assert!(h[..10].iter().all(|x| !x));
         for block in h.chunks(300) {
             let share = block.iter().filter(|x| **x).count() as f64 / 300.0;
@@ -454,8 +551,80 @@ mod tests {
         assert_eq!(extrapolated(&loads, &h), 0);
         // One cycle per load: too little held out, by load blocks instead.
         let loads = [100.0, 100.0, 200.0, 200.0, 300.0, 300.0];
-        let h = holdout_by_segment(&loads, &[0, 0, 1, 1, 2, 2], 3);
+        let h = holdout_by_segment(&loads, &[0, 0, 1, 1, 2, 2], 3, &[]).0;
         assert_eq!(h, holdout_by_load_block(&loads));
+    }
+
+    #[test]
+    fn a_regime_the_draw_leaves_in_training_is_held_out_too() {
+        // Four loads of 30 cycles of 10 samples; at every load one cycle is
+        // fast (the regime), the same cycle number in every load block, as
+        // a protocol that repeats itself gives.
+        let loads: Vec<f64> = (0..1200).map(|i| 100.0 * (1 + i / 300) as f64).collect();
+        let cycle: Vec<u32> = (0..1200).map(|i| i / 10).collect();
+        let (drawn, _) = holdout_by_segment(&loads, &cycle, 3, &[]);
+        let segment = segments(&loads, &cycle);
+        // The fast cycle: at each load, the first training segment past the
+        // first cycle, so that the draw holds out none of it.
+        let mut fast = vec![false; 1200];
+        for block in 0..4 {
+            let c = (block * 30 + 1..block * 30 + 30)
+                .find(|&c| !drawn[c * 10])
+                .unwrap_or(block * 30 + 1);
+            fast[c * 10..c * 10 + 10].iter_mut().for_each(|f| *f = true);
+        }
+        let share = |h: &[bool]| {
+            let held = (0..1200).filter(|&i| fast[i] && h[i]).count();
+            held as f64 / fast.iter().filter(|f| **f).count() as f64
+        };
+        assert_eq!(share(&drawn), 0.0);
+        let (h, moved) = holdout_by_segment(&loads, &cycle, 3, &[&fast]);
+        assert_eq!(moved, vec![2]);
+        assert!(share(&h) >= 1.0 / 3.0, "{}", share(&h));
+        // Only segments of the regime moved, whole, and to the held-out part.
+        for i in 0..1200 {
+            assert!(h[i] == drawn[i] || (fast[i] && h[i]), "sample {i}");
+        }
+        for c in h.chunks(10) {
+            assert!(c.iter().all(|x| *x == c[0]));
+        }
+        assert!(h[..10].iter().all(|x| !x));
+        // Every load still trains.
+        for block in h.chunks(300) {
+            assert!(block.iter().any(|x| !x));
+        }
+        // Already held out at one in six: left as drawn.
+        let mut again = h.clone();
+        assert_eq!(cover_regime(&mut again, &segment, &loads, &fast, 3), 0);
+        assert_eq!(again, h);
+        // A regime in a single segment cannot be in both parts: left alone.
+        let mut one = vec![false; 1200];
+        let c = (1..30).find(|&c| !drawn[c * 10]).unwrap_or(1);
+        one[c * 10..c * 10 + 10].iter_mut().for_each(|f| *f = true);
+        let mut kept = drawn.clone();
+        assert_eq!(cover_regime(&mut kept, &segment, &loads, &one, 3), 0);
+        assert_eq!(kept, drawn);
+    }
+
+    #[test]
+    fn the_last_training_segment_of_a_load_is_never_moved() {
+        // Two loads; at 200 N a single cycle, and it is fast; at 100 N three
+        // fast cycles, none held out by the draw.
+        let loads: Vec<f64> = (0..40)
+            .map(|i| if i < 30 { 100.0 } else { 200.0 })
+            .collect();
+        let cycle: Vec<u32> = (0..40).map(|i| i / 10).collect();
+        let segment = segments(&loads, &cycle);
+        let fast = vec![true; 40];
+        let mut h = vec![false; 40];
+        let moved = cover_regime(&mut h, &segment, &loads, &fast, 3);
+        // Segment 0 never moves and the 200 N cycle is its load's only one:
+        // the 100 N cycles 1 and 2 move (one alone is a quarter of the
+        // regime, short of one in three).
+        assert_eq!(moved, 2);
+        assert!(h[..10].iter().all(|x| !x));
+        assert!(h[10..30].iter().all(|x| *x));
+        assert!(h[30..].iter().all(|x| !x));
     }
 
     #[test]

@@ -580,8 +580,8 @@ fn main() -> ! {
         }),
         ..Effects::NONE
     };
-    // What `diagnose` names on examples/rate_dependence.csv first and
-    // second: the memory, then the rate (linear law).
+    // What `diagnose` names on the memory + rate plants (pam-lab's
+    // DIAGNOSE.md): the memory and the rate law (here linear).
     let memory_rate = Effects {
         memory: memory_only.memory,
         rate: Some(RateDependence::linear(1.0, 2.0)),

@@ -6,7 +6,11 @@
 //! low-pass of time constant `filter_time_s` and `ṗ_max` is
 //! `max_rate_mpa_per_s`, the rate where the law saturates. A pressure step
 //! is a rate far above any ramp; without the saturation the loop would
-//! blow up at every step. A fit sets `ṗ_max` to the fastest ramp its data
+//! blow up at every step. The filter's input saturates there too: a step
+//! enters the filter as a short ramp at `ṗ_max`, so the loop is back at
+//! rest as soon after a step as after a ramp's end (were the step's rate
+//! filtered first, the filtered rate would stay above `ṗ_max`, and the loop
+//! at its widest, for a few filter times after every step). A fit sets `ṗ_max` to the fastest ramp its data
 //! shows, so the law never widens a loop beyond what was measured
 //! (default
 //! [`RATE_FILTER_TIME_S`]: the raw difference of a 50 Hz signal with
@@ -195,12 +199,20 @@ impl RateState {
         self.rate_mpa_per_s
     }
 
-    /// Feed a pressure sample `dt_s` after the previous one, through a
+    /// Feed a pressure sample `dt_s` after the previous one, its rate
+    /// saturated at `max_rate_mpa_per_s` (the law's `ṗ_max`; not in
+    /// `(0, MAX_RATE_MPA_PER_S]`: [`MAX_RATE_MPA_PER_S`]), through a
     /// low-pass of time constant `filter_time_s` (negative or non-finite:
     /// [`RATE_FILTER_TIME_S`]). A non-finite pressure, or a `dt_s` that is
     /// not in `(0, 1]` s, leaves the state as it was (the rate is held
     /// rather than guessed).
-    pub fn update(&mut self, pressure_mpa: f32, dt_s: f32, filter_time_s: f32) {
+    pub fn update(
+        &mut self,
+        pressure_mpa: f32,
+        dt_s: f32,
+        filter_time_s: f32,
+        max_rate_mpa_per_s: f32,
+    ) {
         if !pressure_mpa.is_finite() {
             return;
         }
@@ -212,11 +224,12 @@ impl RateState {
             self.last_pressure_mpa = Some(pressure_mpa);
             return;
         }
-        let raw = clamp(
-            (pressure_mpa - last) / dt_s,
-            -MAX_RATE_MPA_PER_S,
-            MAX_RATE_MPA_PER_S,
-        );
+        let bound = if max_rate_mpa_per_s > 0.0 && max_rate_mpa_per_s <= MAX_RATE_MPA_PER_S {
+            max_rate_mpa_per_s
+        } else {
+            MAX_RATE_MPA_PER_S
+        };
+        let raw = clamp((pressure_mpa - last) / dt_s, -bound, bound);
         // Exact first-order hold discretisation would need exp(); dt ≪ τ at
         // the rates this runs at, where dt/(τ + dt) is within 1 % of it.
         let tau = if (0.0..=MAX_RATE_FILTER_TIME_S).contains(&filter_time_s) {
@@ -238,7 +251,12 @@ mod tests {
     fn filtered_rate_settles_on_a_ramp() {
         let mut s = RateState::default();
         for k in 0..500 {
-            s.update(0.1 * k as f32 * 0.02, 0.02, RATE_FILTER_TIME_S);
+            s.update(
+                0.1 * k as f32 * 0.02,
+                0.02,
+                RATE_FILTER_TIME_S,
+                MAX_RATE_MPA_PER_S,
+            );
         }
         assert!((s.rate_mpa_per_s() - 0.1).abs() < 1e-3, "{s:?}");
         let r = RateDependence::linear(1.0, 10.0);
@@ -249,7 +267,12 @@ mod tests {
     fn exponent_gives_the_power_law() {
         let mut s = RateState::default();
         for k in 0..500 {
-            s.update(0.2 * k as f32 * 0.02, 0.02, RATE_FILTER_TIME_S);
+            s.update(
+                0.2 * k as f32 * 0.02,
+                0.02,
+                RATE_FILTER_TIME_S,
+                MAX_RATE_MPA_PER_S,
+            );
         }
         let r = s.rate_mpa_per_s() as f64;
         assert!((r - 0.2).abs() < 1e-3, "{s:?}");
@@ -290,15 +313,15 @@ mod tests {
             let dt = 0.001;
             let steps = (tau / dt).round() as usize;
             for k in 0..=steps {
-                s.update(k as f32 * dt, dt, tau);
+                s.update(k as f32 * dt, dt, tau, MAX_RATE_MPA_PER_S);
             }
             let r = s.rate_mpa_per_s();
             assert!((r - 0.632).abs() < 0.01, "tau = {tau}: {r}");
         }
         // tau = 0: the raw difference.
         let mut s = RateState::default();
-        s.update(0.0, 0.02, 0.0);
-        s.update(0.01, 0.02, 0.0);
+        s.update(0.0, 0.02, 0.0, MAX_RATE_MPA_PER_S);
+        s.update(0.01, 0.02, 0.0, MAX_RATE_MPA_PER_S);
         assert!((s.rate_mpa_per_s() - 0.5).abs() < 1e-6);
     }
 
@@ -318,7 +341,7 @@ mod tests {
             ..bounded
         };
         assert_eq!(bounded.validate(), Ok(()));
-        let mut s = RateState::default();
+        let (mut s, mut su) = (RateState::default(), RateState::default());
         let mut p = 0.1f32;
         let (mut ramp_max, mut step_max, mut step_max_unbounded) = (0.0f32, 0.0f32, 0.0f32);
         for k in 0..600 {
@@ -327,12 +350,13 @@ mod tests {
             } else if k == 300 {
                 p += 0.3;
             }
-            s.update(p, dt, bounded.filter_time_s);
+            s.update(p, dt, bounded.filter_time_s, bounded.max_rate_mpa_per_s);
+            su.update(p, dt, unbounded.filter_time_s, unbounded.max_rate_mpa_per_s);
             if k < 300 {
                 ramp_max = ramp_max.max(bounded.scale(&s));
             } else {
                 step_max = step_max.max(bounded.scale(&s));
-                step_max_unbounded = step_max_unbounded.max(unbounded.scale(&s));
+                step_max_unbounded = step_max_unbounded.max(unbounded.scale(&su));
             }
         }
         // The ramp reaches the saturation; the step goes no further.
@@ -352,14 +376,48 @@ mod tests {
     }
 
     #[test]
+    fn a_step_leaves_the_loop_widened_no_longer_than_a_ramps_end() {
+        // 100 Hz, `ṗ_max` 0.2 MPa/s, a 0.05 s filter. Count the samples
+        // after the pressure stops moving while the factor is still above
+        // the middle of rest and top: after a ramp at `ṗ_max` that ends,
+        // and after a 0.3 MPa step in one sample from a hold.
+        let dt = 0.01;
+        let law = RateDependence {
+            exponent: 0.5,
+            filter_time_s: 0.05,
+            max_rate_mpa_per_s: 0.2,
+            ..RateDependence::linear(0.6, 2.2)
+        };
+        let mid = 0.5 * (law.scale_at_rest + law.max_scale());
+        let widened_after = |pressure: &dyn Fn(usize) -> f32| {
+            let mut s = RateState::default();
+            let mut count = 0;
+            for k in 0..400 {
+                s.update(pressure(k), dt, law.filter_time_s, law.max_rate_mpa_per_s);
+                if k > 200 && law.scale(&s) > mid {
+                    count += 1;
+                }
+            }
+            count
+        };
+        let after_ramp = widened_after(&|k| 0.2 * dt * k.min(200) as f32);
+        let after_step = widened_after(&|k| if k <= 200 { 0.1 } else { 0.4 });
+        // The ramp's end: ln(4)·τ ≈ 7 samples above the middle. Were the
+        // step filtered before the saturation (a raw 5 MPa/s entering the
+        // filter), it would stay above it for ln(16)·τ ≈ 14 samples.
+        assert!((4..=10).contains(&after_ramp), "{after_ramp}");
+        assert!(after_step <= after_ramp, "{after_step} vs {after_ramp}");
+    }
+
+    #[test]
     fn bad_samples_are_ignored() {
         let mut s = RateState::default();
-        s.update(0.1, 0.02, RATE_FILTER_TIME_S);
-        s.update(f32::NAN, 0.02, RATE_FILTER_TIME_S);
-        s.update(0.2, f32::NAN, RATE_FILTER_TIME_S);
-        s.update(0.3, -1.0, RATE_FILTER_TIME_S);
+        s.update(0.1, 0.02, RATE_FILTER_TIME_S, f32::NAN);
+        s.update(f32::NAN, 0.02, RATE_FILTER_TIME_S, MAX_RATE_MPA_PER_S);
+        s.update(0.2, f32::NAN, RATE_FILTER_TIME_S, MAX_RATE_MPA_PER_S);
+        s.update(0.3, -1.0, RATE_FILTER_TIME_S, MAX_RATE_MPA_PER_S);
         assert_eq!(s.rate_mpa_per_s(), 0.0);
-        s.update(1e30, 0.02, f32::NAN);
+        s.update(1e30, 0.02, f32::NAN, MAX_RATE_MPA_PER_S);
         assert!(s.rate_mpa_per_s() <= MAX_RATE_MPA_PER_S);
         assert!(s.rate_mpa_per_s().is_finite());
     }

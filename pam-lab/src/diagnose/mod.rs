@@ -8,6 +8,12 @@
 //!    drawn by a fixed hash, is held out. No assumption about the protocol:
 //!    every load that recurs is in both parts, and held-out samples beyond
 //!    the training loads are counted and reported (`extrapolated_samples`).
+//!    The regimes the pressure alone decides ([`pressure_regimes`]: fast
+//!    ramps, holds after a step) are held out too: where the draw leaves
+//!    one in the training part (under one in `2·HOLDOUT_EVERY` of its
+//!    samples held out), more of its segments are held out
+//!    ([`crate::split::cover_regime`]), or the effect that shows there
+//!    could not show on held-out data.
 //! 2. **Base model.** The paper's model is fitted on the training part with
 //!    [`crate::fit::fit`], then the whole record is simulated from the
 //!    measured pressure (through a running median, [`denoise_pressure`]) and
@@ -70,7 +76,7 @@ pub use candidates::{CandidateResult, EffectKind, Signature, RATE_EXPONENTS};
 pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use paths::{PathSummary, PATHS_MAX};
 pub use refit::BASE_REFIT_FIELDS;
-pub use regimes::{hindsight_branches, regimes, Regimes};
+pub use regimes::{hindsight_branches, pressure_regimes, regimes, Regimes};
 pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, Round};
 
 use evaluate::Setup;
@@ -196,7 +202,23 @@ pub fn diagnose_with_progress(
     let samples = &denoised;
     let loads: Vec<f64> = samples.iter().map(|s| s.load_n).collect();
     let split = crate::split::split_branches(samples, &crate::split::SplitConfig::default());
-    let heldout = crate::split::holdout_by_segment(&loads, &split.cycle, HOLDOUT_EVERY);
+    // The regimes the pressure decides are known before the fit: each one
+    // that the drawn segments leave (almost) all in training gets held-out
+    // segments too, or its candidate could not show on held-out data.
+    let paced = pressure_regimes(samples);
+    let (heldout, moved) = crate::split::holdout_by_segment(
+        &loads,
+        &split.cycle,
+        HOLDOUT_EVERY,
+        &[&paced.fast_ramp, &paced.hold_after_step],
+    );
+    for (name, m) in ["fast ramps", "holds after a step"].iter().zip(&moved) {
+        if *m > 0 {
+            progress(&format!(
+                "hold-out: {m} more segment(s) held out so that {name} are held out too"
+            ));
+        }
+    }
     let extrapolated = crate::split::extrapolated(&loads, &heldout);
     // The training part keeps the file's line numbers, so that a refusal
     // of the base fit points at the record's own lines.

@@ -218,19 +218,26 @@ fn max_ramp_rate(rate: &[f64], step: &[bool], margin: usize) -> f64 {
     top
 }
 
-/// Label the regimes of a record from its pressure.
-pub fn regimes(samples: &[Sample], coeffs: &Coeffs, tracker_cfg: TrackerConfig) -> Regimes {
+/// The sample period, the pressure rate (central difference over ±0.2 s)
+/// and the steps (the pressure moves by more than 0.05 MPa within 3
+/// samples, faster than 1 MPa/s) of a record.
+struct PressureMotion {
+    dt_s: f64,
+    rate_window: usize,
+    rate_mpa_per_s: Vec<f64>,
+    step: Vec<bool>,
+}
+
+fn pressure_motion(samples: &[Sample]) -> PressureMotion {
     let n = samples.len();
     let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
-    let pmax = f64::from(coeffs.params().points.max_pressure_mpa);
     let dt = if n > 1 {
         ((samples[n - 1].t_s - samples[0].t_s) / (n - 1) as f64).max(1e-6)
     } else {
         0.02
     };
-    // Rate: central difference over ±0.2 s.
     let w = ((0.2 / dt).round() as usize).max(1);
-    let rate: Vec<f64> = (0..n)
+    let rate = (0..n)
         .map(|i| {
             let (a, b) = (i.saturating_sub(w), (i + w).min(n.saturating_sub(1)));
             if b > a {
@@ -240,23 +247,72 @@ pub fn regimes(samples: &[Sample], coeffs: &Coeffs, tracker_cfg: TrackerConfig) 
             }
         })
         .collect();
-    // Steps: the pressure moves by more than 0.05 MPa within 3 samples.
-    let step: Vec<bool> = (0..n)
+    let step = (0..n)
         .map(|i| {
             let b = (i + 3).min(n.saturating_sub(1));
             (p[b] - p[i]).abs() > 0.05 && (p[b] - p[i]).abs() / ((b - i).max(1) as f64 * dt) > 1.0
         })
         .collect();
+    PressureMotion {
+        dt_s: dt,
+        rate_window: w,
+        rate_mpa_per_s: rate,
+        step,
+    }
+}
+
+/// The regimes that the pressure alone decides (fast and slow ramps, holds
+/// after a step, the fastest ramp); `after_inner_reversal` is left empty
+/// (all false): it needs the model's tracker, see [`regimes`]. Known before
+/// any fit, so the hold-out can make sure each of them is held out too
+/// (`split::cover_regimes`).
+pub fn pressure_regimes(samples: &[Sample]) -> Regimes {
+    let n = samples.len();
+    let m = pressure_motion(samples);
+    let dt = m.dt_s;
     let mut r = Regimes {
         after_inner_reversal: vec![false; n],
         fast_ramp: vec![false; n],
         slow_ramp: vec![false; n],
         hold_after_step: vec![false; n],
-        max_ramp_rate_mpa_per_s: max_ramp_rate(&rate, &step, (0.5 / dt) as usize + w + 3),
+        max_ramp_rate_mpa_per_s: max_ramp_rate(
+            &m.rate_mpa_per_s,
+            &m.step,
+            (0.5 / dt) as usize + m.rate_window + 3,
+        ),
     };
     let hold_len = (10.0 / dt) as usize;
     let near_step = (0.5 / dt) as usize;
     let mut since_step = usize::MAX;
+    let mut since_step_any = usize::MAX;
+    for i in 0..n {
+        if m.step[i] {
+            since_step = 0;
+            since_step_any = 0;
+        } else {
+            since_step = since_step.saturating_add(1);
+            since_step_any = since_step_any.saturating_add(1);
+        }
+        let a = m.rate_mpa_per_s[i].abs();
+        r.fast_ramp[i] = a > 0.1 && since_step_any > near_step;
+        r.slow_ramp[i] = a > 0.005 && a < 0.035 && since_step_any > near_step;
+        if a > 0.01 && since_step > near_step {
+            since_step = usize::MAX;
+        }
+        r.hold_after_step[i] = since_step <= hold_len && a < 0.01;
+    }
+    r
+}
+
+/// Label the regimes of a record from its pressure: [`pressure_regimes`],
+/// and the sweeps after a reversal inside the loop from `coeffs`' tracker.
+pub fn regimes(samples: &[Sample], coeffs: &Coeffs, tracker_cfg: TrackerConfig) -> Regimes {
+    let n = samples.len();
+    let mut r = pressure_regimes(samples);
+    let m = pressure_motion(samples);
+    let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
+    let pmax = f64::from(coeffs.params().points.max_pressure_mpa);
+    let near_step = (0.5 / m.dt_s) as usize;
     let mut since_step_any = usize::MAX;
     let mut tracker = match Tracker::new(
         coeffs,
@@ -270,11 +326,9 @@ pub fn regimes(samples: &[Sample], coeffs: &Coeffs, tracker_cfg: TrackerConfig) 
     let mut extreme = p.first().copied().unwrap_or(0.0);
     let mut inner = false;
     for i in 0..n {
-        if step[i] {
-            since_step = 0;
+        if m.step[i] {
             since_step_any = 0;
         } else {
-            since_step = since_step.saturating_add(1);
             since_step_any = since_step_any.saturating_add(1);
         }
         let u = tracker.update(coeffs, p[i] as f32, samples[i].load_n as f32);
@@ -293,14 +347,7 @@ pub fn regimes(samples: &[Sample], coeffs: &Coeffs, tracker_cfg: TrackerConfig) 
         if u.load_switch.is_some() {
             inner = false;
         }
-        let a = rate[i].abs();
         r.after_inner_reversal[i] = inner && since_step_any > near_step;
-        r.fast_ramp[i] = a > 0.1 && since_step_any > near_step;
-        r.slow_ramp[i] = a > 0.005 && a < 0.035 && since_step_any > near_step;
-        if a > 0.01 && since_step > near_step {
-            since_step = usize::MAX;
-        }
-        r.hold_after_step[i] = since_step <= hold_len && a < 0.01;
     }
     r
 }

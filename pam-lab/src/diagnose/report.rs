@@ -190,7 +190,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
         }
     }
     s.push_str(&format!(
-        "named: {}; effects added: [{}]\nheld-out RMS {:.5} -> {:.5} ({:.1} % lower)\n",
+        "named first: {}; effects added, in order: [{}]\nheld-out RMS {:.5} -> {:.5} ({:.1} % lower)\n",
         r.named,
         r.effects_added.join(", "),
         r.rms_before,
