@@ -587,6 +587,17 @@ fn main() -> ! {
         rate: Some(RateDependence::linear(1.0, 2.0)),
         ..Effects::NONE
     };
+    // What `diagnose` names on host-sim's rate rig (the end-to-end run):
+    // the static shape, then the rate law at an exponent diagnose fits
+    // (0.5, 0.75 or 1: square roots, never `powf`), here 0.75.
+    let shape_rate = Effects {
+        rate: Some(RateDependence {
+            exponent: 0.75,
+            ..RateDependence::linear(1.0, 2.0)
+        }),
+        shape: shape_memory.shape,
+        ..Effects::NONE
+    };
     let all = Effects {
         memory: memory_only.memory,
         rate: rate.rate,
@@ -608,6 +619,7 @@ fn main() -> ! {
         ("shape", Feedforward::HysteresisEffects(shape)),
         ("shape_memory", Feedforward::HysteresisEffects(shape_memory)),
         ("memory_rate", Feedforward::HysteresisEffects(memory_rate)),
+        ("shape_rate", Feedforward::HysteresisEffects(shape_rate)),
         ("effects", Feedforward::HysteresisEffects(all)),
     ];
     for (name, ff) in feedforwards {

@@ -325,17 +325,23 @@ mod tests {
         assert!((s.rate_mpa_per_s() - 0.5).abs() < 1e-6);
     }
 
+    /// `0.6 + 2.2·|ṗ|^0.5` through a 0.05 s filter, saturating at the
+    /// fastest ramp of the tests below, 0.2 MPa/s.
+    fn square_root_law_saturating_at_ramps() -> RateDependence {
+        RateDependence {
+            exponent: 0.5,
+            filter_time_s: 0.05,
+            max_rate_mpa_per_s: 0.2,
+            ..RateDependence::linear(0.6, 2.2)
+        }
+    }
+
     #[test]
     fn a_pressure_step_does_not_blow_the_factor_up() {
         // 100 Hz, a ramp at 0.2 MPa/s, then a 0.3 MPa step in one sample
         // (a raw rate of 30 MPa/s, clamped to 5), then a hold.
         let dt = 0.01;
-        let bounded = RateDependence {
-            exponent: 0.5,
-            filter_time_s: 0.05,
-            max_rate_mpa_per_s: 0.2,
-            ..RateDependence::linear(0.6, 2.2)
-        };
+        let bounded = square_root_law_saturating_at_ramps();
         let unbounded = RateDependence {
             max_rate_mpa_per_s: MAX_RATE_MPA_PER_S,
             ..bounded
@@ -382,12 +388,7 @@ mod tests {
         // the middle of rest and top: after a ramp at `ṗ_max` that ends,
         // and after a 0.3 MPa step in one sample from a hold.
         let dt = 0.01;
-        let law = RateDependence {
-            exponent: 0.5,
-            filter_time_s: 0.05,
-            max_rate_mpa_per_s: 0.2,
-            ..RateDependence::linear(0.6, 2.2)
-        };
+        let law = square_root_law_saturating_at_ramps();
         let mid = 0.5 * (law.scale_at_rest + law.max_scale());
         let widened_after = |pressure: &dyn Fn(usize) -> f32| {
             let mut s = RateState::default();

@@ -375,9 +375,68 @@ pub fn diagnose_with_progress(
         correlation_length: setup.corr_len,
         min_improvement: cfg.min_improvement,
         min_bic_drop: cfg.min_bic_drop,
+        warnings: model_warnings(&current, &paced),
         predicted_base,
         predicted_after,
         heldout: setup.heldout,
         regimes: setup.regimes,
     })
+}
+
+/// What a record leaves open about `effects`, one sentence each.
+///
+/// A rate law fitted on a record with no hold after a pressure step has
+/// its factor at rest from the ramps alone: nothing in the record shows
+/// the loop while the pressure stands still, which is where a position
+/// loop's set-point spends its time. The project's own rig (Maxwell-slip
+/// friction and viscous damping, host-sim's rate rig) gives a law whose
+/// loop vanishes at rest there, and the feedforward with it trips the
+/// firmware's model check (host-sim/README.md).
+pub fn model_warnings(effects: &Effects, paced: &Regimes) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if let Some(rate) = &effects.rate {
+        if !paced.hold_after_step.iter().any(|h| *h) {
+            warnings.push(format!(
+                "the rate law's factor at rest ({:.2}) is an extrapolation: the record has no hold after a pressure step, so nothing in it shows the loop while the pressure stands still; record a few steps with holds of several seconds (pam-lab/DIAGNOSE.md, \"What is still not handled\") before using this model as a feedforward",
+                rate.scale_at_rest
+            ));
+        }
+    }
+    warnings
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pam_core::effects::RateDependence;
+
+    fn paced(holds: &[bool]) -> Regimes {
+        Regimes {
+            after_inner_reversal: vec![false; holds.len()],
+            fast_ramp: vec![false; holds.len()],
+            slow_ramp: vec![false; holds.len()],
+            hold_after_step: holds.to_vec(),
+            max_ramp_rate_mpa_per_s: 0.2,
+        }
+    }
+
+    #[test]
+    fn a_rate_law_from_a_record_without_holds_is_flagged() {
+        let with_rate = Effects {
+            rate: Some(RateDependence::linear(0.0, 9.0)),
+            ..Effects::NONE
+        };
+        let flagged = model_warnings(&with_rate, &paced(&[false; 50]));
+        assert_eq!(flagged.len(), 1);
+        assert!(
+            flagged[0].contains("no hold after a pressure step"),
+            "{flagged:?}"
+        );
+        // A hold in the record shows the loop at rest: nothing to flag.
+        let mut holds = [false; 50];
+        holds[20] = true;
+        assert!(model_warnings(&with_rate, &paced(&holds)).is_empty());
+        // Without a rate law the holds do not matter.
+        assert!(model_warnings(&Effects::NONE, &paced(&[false; 50])).is_empty());
+    }
 }

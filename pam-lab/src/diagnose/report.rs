@@ -80,6 +80,9 @@ pub struct DiagnoseReport {
     pub min_improvement: f64,
     /// BIC threshold.
     pub min_bic_drop: f64,
+    /// What the record leaves open about the model it ends with
+    /// ([`super::model_warnings`]), one sentence each.
+    pub warnings: Vec<String>,
     /// Predicted contraction of the base and final models (not serialised).
     #[serde(skip)]
     pub predicted_base: Vec<f64>,
@@ -205,6 +208,9 @@ pub fn summary(r: &DiagnoseReport) -> String {
         r.above_noise_after,
         pct(r.share_removed())
     ));
+    for w in &r.warnings {
+        s.push_str(&format!("warning: {w}\n"));
+    }
     s
 }
 
