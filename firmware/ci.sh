@@ -20,7 +20,7 @@ rustup component add llvm-tools clippy
 command -v qemu-system-arm >/dev/null || (apt-get update && apt-get install -y qemu-system-arm)
 qemu-system-arm --version | head -n 1
 
-target_dir=${CARGO_TARGET_DIR:-$PWD/target}
+target_dir=$(realpath -m "${CARGO_TARGET_DIR:-$PWD/target}")
 release=$target_dir/thumbv7em-none-eabihf/release
 llvm_size=$(rustc --print sysroot)/lib/rustlib/$(rustc -vV | sed -n 's/^host: //p')/bin/llvm-size
 flash_budget=$(awk '$1 == "flash_bytes" { print $2 }' firmware/size-budget.txt)

@@ -20,7 +20,7 @@ fuzz_target!(|data: &[u8]| {
             return;
         }
     };
-    match commands::diagnose_record(&record, &DiagnoseConfig::default()) {
+    match commands::diagnose_record(&record, &DiagnoseConfig::default(), &|_| {}) {
         Ok(r) => {
             assert!(r.rms_before.is_finite() && r.rms_after.is_finite());
             assert_eq!(r.predicted_base.len(), record.len());

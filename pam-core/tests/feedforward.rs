@@ -248,8 +248,10 @@ proptest! {
             // saturated or very wide loop, where the model's rate of the
             // commanded pressure, which steps at a branch switch, and the
             // inverse's rate of the constraint pressure part most), at
-            // most 1.30x (1.69x with the saturation fixed at 5 MPa/s).
-            // Checked: within the tolerance, or within twice that error.
+            // most 1.30x (1.69x with the saturation fixed at 5 MPa/s);
+            // measured before the rate filter's state was bounded at the
+            // saturation, not since. Checked: within the tolerance, or
+            // within twice that error.
             let without = Effects { rate: None, ..effects };
             let rms_without = round_trip_with(effects, without, load_n, &turns, speed)
                 .map_or(f32::INFINITY, |r| r.1);

@@ -189,10 +189,12 @@ pub fn holdout_by_load_block(loads_n: &[f64]) -> Vec<bool> {
 /// say, every full cycle; a drawn one mixes every kind of cycle and every
 /// load into both parts. The record's first segment always trains. A
 /// record where that holds out under a tenth of the samples (few cycles)
-/// falls back to [`holdout_by_load_block`]. Each mask in `cover` (a regime:
-/// fast ramps, holds after a step) is then made sure to be held out as well
-/// ([`cover_regime`]). Returns the mask and, per mask in `cover`, the
-/// number of segments moved to the held-out part for it.
+/// falls back to [`holdout_by_load_block`] (whose mask is not covered:
+/// its blocks are not whole segments). Otherwise each mask in `cover` (a
+/// regime: fast ramps, holds after a step) is then made sure to be held
+/// out as well ([`cover_regime`]), none of them losing its last training
+/// segment to another's cover. Returns the mask and, per mask in `cover`,
+/// the number of segments moved to the held-out part for it.
 pub fn holdout_by_segment(
     loads_n: &[f64],
     cycle: &[u32],
@@ -210,7 +212,7 @@ pub fn holdout_by_segment(
     }
     let moved = cover
         .iter()
-        .map(|regime| cover_regime(&mut out, &segment, loads_n, regime, k))
+        .map(|regime| cover_regime(&mut out, &segment, loads_n, regime, cover, k))
         .collect();
     (out, moved)
 }
@@ -236,22 +238,28 @@ pub fn segments(loads_n: &[f64], cycle: &[u32]) -> Vec<u64> {
 /// one fast cycle per load may hold out a single fast-ramp sample). Then
 /// training segments holding it are moved to the held-out part, in the
 /// order of a fixed hash of their number, until one in `k` of its samples is
-/// held out, while at least one training segment holds it, never the first
-/// segment, and never the last training segment of a load. A regime already
-/// held out at one in `2k` leaves the mask as it is. Returns the number of
-/// segments moved.
+/// held out, never the first segment, never the last training segment of
+/// a load, and never the last training segment of `regime` or of any regime
+/// in `protect` that lies in two segments or more (the other regimes being
+/// covered: each keeps training data). A regime already held out at one
+/// in `2k` leaves the mask as it is. `heldout` must be constant over each
+/// segment. Returns the number of segments moved.
 pub fn cover_regime(
     heldout: &mut [bool],
     segment: &[u64],
     loads_n: &[f64],
     regime: &[bool],
+    protect: &[&[bool]],
     k: usize,
 ) -> usize {
-    let n = heldout
-        .len()
-        .min(segment.len())
-        .min(loads_n.len())
-        .min(regime.len());
+    let n = protect.iter().fold(
+        heldout
+            .len()
+            .min(segment.len())
+            .min(loads_n.len())
+            .min(regime.len()),
+        |n, p| n.min(p.len()),
+    );
     let k = k.max(2) as f64;
     let Some(&last) = segment[..n].last() else {
         return 0;
@@ -275,25 +283,45 @@ pub fn cover_regime(
     if bearing < 2 || total == 0 || (held_in as f64) >= total as f64 / (2.0 * k) {
         return 0;
     }
+    // The regime itself and every protected one that lies in two segments
+    // or more: per segment whether it bears it, and how many training
+    // segments do.
+    let mut guarded: Vec<(Vec<bool>, usize)> = std::iter::once(regime)
+        .chain(protect.iter().copied())
+        .filter_map(|r| {
+            let mut bears = vec![false; segs];
+            for i in 0..n {
+                bears[segment[i] as usize] |= r[i];
+            }
+            let training = (0..segs).filter(|&s| bears[s] && !held[s]).count();
+            (bears.iter().filter(|b| **b).count() >= 2).then_some((bears, training))
+        })
+        .collect();
     let same_load = |a: f64, b: f64| (a - b).abs() <= 1.0;
     let mut order: Vec<usize> = (1..segs)
         .filter(|&s| !held[s] && in_regime[s] > 0)
         .collect();
     order.sort_by_key(|&s| splitmix(s as u64));
-    let mut training_bearing = (0..segs).filter(|&s| !held[s] && in_regime[s] > 0).count();
     let mut moved = 0;
     for s in order {
-        if (held_in as f64) >= total as f64 / k || training_bearing <= 1 {
+        if (held_in as f64) >= total as f64 / k {
             break;
         }
         let load_trains_elsewhere =
             (0..segs).any(|o| o != s && !held[o] && size[o] > 0 && same_load(load[o], load[s]));
-        if !load_trains_elsewhere {
+        let last_of_a_regime = guarded
+            .iter()
+            .any(|(bears, training)| bears[s] && *training <= 1);
+        if !load_trains_elsewhere || last_of_a_regime {
             continue;
         }
         held[s] = true;
         held_in += in_regime[s];
-        training_bearing -= 1;
+        for (bears, training) in &mut guarded {
+            if bears[s] {
+                *training -= 1;
+            }
+        }
         moved += 1;
     }
     if moved > 0 {
@@ -595,14 +623,14 @@ mod tests {
         }
         // Already held out at one in six: left as drawn.
         let mut again = h.clone();
-        assert_eq!(cover_regime(&mut again, &segment, &loads, &fast, 3), 0);
+        assert_eq!(cover_regime(&mut again, &segment, &loads, &fast, &[], 3), 0);
         assert_eq!(again, h);
         // A regime in a single segment cannot be in both parts: left alone.
         let mut one = vec![false; 1200];
         let c = (1..30).find(|&c| !drawn[c * 10]).unwrap_or(1);
         one[c * 10..c * 10 + 10].iter_mut().for_each(|f| *f = true);
         let mut kept = drawn.clone();
-        assert_eq!(cover_regime(&mut kept, &segment, &loads, &one, 3), 0);
+        assert_eq!(cover_regime(&mut kept, &segment, &loads, &one, &[], 3), 0);
         assert_eq!(kept, drawn);
     }
 
@@ -617,7 +645,7 @@ mod tests {
         let segment = segments(&loads, &cycle);
         let fast = vec![true; 40];
         let mut h = vec![false; 40];
-        let moved = cover_regime(&mut h, &segment, &loads, &fast, 3);
+        let moved = cover_regime(&mut h, &segment, &loads, &fast, &[], 3);
         // Segment 0 never moves and the 200 N cycle is its load's only one:
         // the 100 N cycles 1 and 2 move (one alone is a quarter of the
         // regime, short of one in three).
@@ -625,6 +653,54 @@ mod tests {
         assert!(h[..10].iter().all(|x| !x));
         assert!(h[10..30].iter().all(|x| *x));
         assert!(h[30..].iter().all(|x| !x));
+    }
+
+    #[test]
+    fn covering_one_regime_never_takes_the_last_training_segment_of_another() {
+        // Eight segments of ten samples at one load; segment 6 held out.
+        // Fast ramps in segments 3 and 5, holds in 4, 5 and 7. The fast
+        // ramps' cover moves 3 (first in hash order, 3, 5, 7, 4, 1, 2, 6),
+        // which leaves 5 their last training segment; the holds' cover
+        // would move 5 first, and must take 7 instead.
+        let loads = vec![100.0; 80];
+        let cycle: Vec<u32> = (0..80).map(|i| i / 10).collect();
+        let segment = segments(&loads, &cycle);
+        let in_segments =
+            |segs: &[usize]| -> Vec<bool> { (0..80).map(|i| segs.contains(&(i / 10))).collect() };
+        let (fast, hold) = (in_segments(&[3, 5]), in_segments(&[4, 5, 7]));
+        let mut h = in_segments(&[6]);
+        let both: [&[bool]; 2] = [&fast, &hold];
+        assert_eq!(cover_regime(&mut h, &segment, &loads, &fast, &both, 3), 1);
+        assert_eq!(cover_regime(&mut h, &segment, &loads, &hold, &both, 3), 1);
+        assert_eq!(h, in_segments(&[3, 6, 7]));
+        // Without the other regime protected, the holds' cover takes 5.
+        let mut h = in_segments(&[3, 6]);
+        assert_eq!(cover_regime(&mut h, &segment, &loads, &hold, &[], 3), 1);
+        assert_eq!(h, in_segments(&[3, 5, 6]));
+        // And holdout_by_segment protects every regime it covers.
+        let (h, _) = holdout_by_segment(&loads, &cycle, 3, &[&fast, &hold]);
+        assert!((0..80).any(|i| fast[i] && !h[i]));
+        assert!((0..80).any(|i| hold[i] && !h[i]));
+    }
+
+    #[test]
+    fn a_regime_is_covered_only_under_one_in_2k() {
+        // Ten segments of ten samples at one load, the regime in 1..=9.
+        let loads = vec![100.0; 100];
+        let cycle: Vec<u32> = (0..100).map(|i| i / 10).collect();
+        let segment = segments(&loads, &cycle);
+        let regime: Vec<bool> = (0..100).map(|i| i >= 10).collect();
+        let in_segments =
+            |segs: &[usize]| -> Vec<bool> { (0..100).map(|i| segs.contains(&(i / 10))).collect() };
+        // Two segments held out: 2/9 of the regime, over one in six.
+        let mut h = in_segments(&[3, 7]);
+        assert_eq!(cover_regime(&mut h, &segment, &loads, &regime, &[], 3), 0);
+        // One: 1/9, under one in six: segments move until one in three.
+        let mut h = in_segments(&[3]);
+        assert_eq!(cover_regime(&mut h, &segment, &loads, &regime, &[], 3), 2);
+        let held = (0..100).filter(|&i| regime[i] && h[i]).count();
+        assert_eq!(held, 30);
+        assert!(h[..10].iter().all(|x| !x));
     }
 
     #[test]

@@ -562,8 +562,9 @@ fn main() -> ! {
         }),
         ..Effects::NONE
     };
-    // What `diagnose` names on host-sim's rigs (the end-to-end run): the
-    // static shape with its stroke ends moving with load, then the memory.
+    // What `diagnose` names on two of host-sim's rigs (the end-to-end
+    // run): the static shape with its stroke ends moving with load, then
+    // the memory.
     let shape_memory = Effects {
         memory: memory_only.memory,
         shape: Some(ConstraintShape {

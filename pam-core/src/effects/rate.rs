@@ -6,16 +6,17 @@
 //! low-pass of time constant `filter_time_s` and `ṗ_max` is
 //! `max_rate_mpa_per_s`, the rate where the law saturates. A pressure step
 //! is a rate far above any ramp; without the saturation the loop would
-//! blow up at every step. The filter's input saturates there too: a step
-//! enters the filter as a short ramp at `ṗ_max`, so the loop is back at
-//! rest as soon after a step as after a ramp's end (were the step's rate
-//! filtered first, the filtered rate would stay above `ṗ_max`, and the loop
-//! at its widest, for a few filter times after every step). A fit sets `ṗ_max` to the fastest ramp its data
-//! shows, so the law never widens a loop beyond what was measured
-//! (default
+//! blow up at every step. The filter's state saturates there too: a step
+//! takes it to `ṗ_max` at once, and it relaxes from there as after a
+//! ramp at `ṗ_max` that ends, so the loop is back at rest as soon after a
+//! step as after a ramp's end (with only the law saturated, the filtered
+//! rate of a step stayed above `ṗ_max`, and the loop at its widest, for a
+//! few filter times after every step). A fit sets `ṗ_max` to the fastest
+//! ramp its data shows, so the law never widens a loop beyond what was
+//! measured. The filter's default time constant is
 //! [`RATE_FILTER_TIME_S`]: the raw difference of a 50 Hz signal with
 //! 0.001 MPa noise is ±0.07 MPa/s of noise; 0.3 s brings it to about
-//! ±0.01 MPa/s).
+//! ±0.01 MPa/s.
 //!
 //! The exponent `n` is the power law of rate-dependent friction (rubber and
 //! braid friction is commonly sub-linear in the sliding rate, `n < 1`);
@@ -38,8 +39,9 @@ pub const RATE_EXPONENT_RANGE: (f32, f32) = (0.3, 1.5);
 /// Longest filter time constant, s.
 pub const MAX_RATE_FILTER_TIME_S: f32 = 10.0;
 
-/// Largest pressure rate the filter accepts, MPa/s: a step is seen as this
-/// rate, so that one sample of a valve jump cannot swamp the filter state.
+/// Largest pressure rate the filter accepts, MPa/s (a step is seen as this
+/// rate, so that one sample of a valve jump cannot swamp the filter state),
+/// and the largest `ṗ_max`.
 pub const MAX_RATE_MPA_PER_S: f32 = 5.0;
 
 /// Parameters of the rate dependence.
@@ -199,11 +201,16 @@ impl RateState {
         self.rate_mpa_per_s
     }
 
-    /// Feed a pressure sample `dt_s` after the previous one, its rate
-    /// saturated at `max_rate_mpa_per_s` (the law's `ṗ_max`; not in
-    /// `(0, MAX_RATE_MPA_PER_S]`: [`MAX_RATE_MPA_PER_S`]), through a
-    /// low-pass of time constant `filter_time_s` (negative or non-finite:
-    /// [`RATE_FILTER_TIME_S`]). A non-finite pressure, or a `dt_s` that is
+    /// Feed a pressure sample `dt_s` after the previous one: its rate
+    /// (bounded by [`MAX_RATE_MPA_PER_S`]) through a low-pass of time
+    /// constant `filter_time_s` (negative or non-finite:
+    /// [`RATE_FILTER_TIME_S`]) whose state saturates at
+    /// `max_rate_mpa_per_s` (the law's `ṗ_max`; not in
+    /// `(0, MAX_RATE_MPA_PER_S]`: [`MAX_RATE_MPA_PER_S`]). The state, not
+    /// each raw difference, is bounded: a noisy ramp near `ṗ_max` reads its
+    /// own rate (a raw difference of a 1 kHz signal with 0.001 MPa noise is
+    /// ±1.4 MPa/s of noise, and clipping each one at 0.2 MPa/s read a
+    /// 0.2 MPa/s ramp as 0.02). A non-finite pressure, or a `dt_s` that is
     /// not in `(0, 1]` s, leaves the state as it was (the rate is held
     /// rather than guessed).
     pub fn update(
@@ -229,7 +236,13 @@ impl RateState {
         } else {
             MAX_RATE_MPA_PER_S
         };
-        let raw = clamp((pressure_mpa - last) / dt_s, -bound, bound);
+        // A step is bounded as a rate first (one valve jump cannot swamp
+        // the state numerically), the filter state at the law's `ṗ_max`.
+        let raw = clamp(
+            (pressure_mpa - last) / dt_s,
+            -MAX_RATE_MPA_PER_S,
+            MAX_RATE_MPA_PER_S,
+        );
         // Exact first-order hold discretisation would need exp(); dt ≪ τ at
         // the rates this runs at, where dt/(τ + dt) is within 1 % of it.
         let tau = if (0.0..=MAX_RATE_FILTER_TIME_S).contains(&filter_time_s) {
@@ -238,7 +251,11 @@ impl RateState {
             RATE_FILTER_TIME_S
         };
         let alpha = dt_s / (tau + dt_s);
-        self.rate_mpa_per_s += alpha * (raw - self.rate_mpa_per_s);
+        self.rate_mpa_per_s = clamp(
+            self.rate_mpa_per_s + alpha * (raw - self.rate_mpa_per_s),
+            -bound,
+            bound,
+        );
         self.last_pressure_mpa = Some(pressure_mpa);
     }
 }
@@ -339,7 +356,8 @@ mod tests {
     #[test]
     fn a_pressure_step_does_not_blow_the_factor_up() {
         // 100 Hz, a ramp at 0.2 MPa/s, then a 0.3 MPa step in one sample
-        // (a raw rate of 30 MPa/s, clamped to 5), then a hold.
+        // (a raw rate of 30 MPa/s, bounded at 5; the filter state of the bounded
+        // law at its 0.2 MPa/s saturation), then a hold.
         let dt = 0.01;
         let bounded = square_root_law_saturating_at_ramps();
         let unbounded = RateDependence {
@@ -402,12 +420,41 @@ mod tests {
             count
         };
         let after_ramp = widened_after(&|k| 0.2 * dt * k.min(200) as f32);
-        let after_step = widened_after(&|k| if k <= 200 { 0.1 } else { 0.4 });
+        // The step's one moving sample is sample 200, the ramp's last.
+        let after_step = widened_after(&|k| if k < 200 { 0.1 } else { 0.4 });
         // The ramp's end: ln(4)·τ ≈ 7 samples above the middle. Were the
-        // step filtered before the saturation (a raw 5 MPa/s entering the
-        // filter), it would stay above it for ln(16)·τ ≈ 14 samples.
+        // filter's state not bounded (a raw 5 MPa/s entering the filter
+        // and only the law saturated), the step would stay above it for
+        // ln(16)·τ ≈ 14 samples.
         assert!((4..=10).contains(&after_ramp), "{after_ramp}");
         assert!(after_step <= after_ramp, "{after_step} vs {after_ramp}");
+    }
+
+    #[test]
+    fn a_noisy_ramp_near_the_saturation_reads_its_own_rate() {
+        // 1 kHz, a 0.2 MPa/s ramp with ±0.0017 MPa of uniform noise (σ
+        // 0.001), the law saturating at 0.21 MPa/s, a 0.1 s filter. A raw
+        // difference is ±3.4 MPa/s of noise: clipped one by one at 0.21
+        // they read the ramp as about 0.02 MPa/s.
+        let dt = 0.001;
+        let mut seed = 0x2545_f491_u32;
+        let mut noise = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            (seed as f32 / u32::MAX as f32 - 0.5) * 2.0 * 0.0017
+        };
+        let mut s = RateState::default();
+        let (mut sum, mut n) = (0.0f32, 0);
+        for k in 0..20_000 {
+            s.update(0.2 * dt * k as f32 + noise(), dt, 0.1, 0.21);
+            if k >= 10_000 {
+                sum += s.rate_mpa_per_s().min(0.21);
+                n += 1;
+            }
+        }
+        let mean = sum / n as f32;
+        assert!((mean - 0.2).abs() < 0.02, "{mean}");
     }
 
     #[test]
@@ -420,6 +467,16 @@ mod tests {
         assert_eq!(s.rate_mpa_per_s(), 0.0);
         s.update(1e30, 0.02, f32::NAN, MAX_RATE_MPA_PER_S);
         assert!(s.rate_mpa_per_s() <= MAX_RATE_MPA_PER_S);
+        // A saturation outside `(0, MAX_RATE_MPA_PER_S]` bounds the state
+        // at MAX_RATE_MPA_PER_S, finite.
+        for bad in [f32::NAN, f32::INFINITY, 0.0, -1.0, 100.0] {
+            let mut s = RateState::default();
+            s.update(0.0, 0.01, 0.0, bad);
+            s.update(0.3, 0.01, 0.0, bad);
+            assert_eq!(s.rate_mpa_per_s(), MAX_RATE_MPA_PER_S, "{bad}");
+            s.update(0.3, 0.01, 0.0, bad);
+            assert_eq!(s.rate_mpa_per_s(), 0.0, "{bad}");
+        }
         assert!(s.rate_mpa_per_s().is_finite());
     }
 

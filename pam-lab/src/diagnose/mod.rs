@@ -77,7 +77,7 @@ pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use paths::{PathSummary, PATHS_MAX};
 pub use refit::BASE_REFIT_FIELDS;
 pub use regimes::{hindsight_branches, pressure_regimes, regimes, Regimes};
-pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, Round};
+pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, HoldoutCover, Round};
 
 use evaluate::Setup;
 use refit::refit_base;
@@ -212,13 +212,14 @@ pub fn diagnose_with_progress(
         HOLDOUT_EVERY,
         &[&paced.fast_ramp, &paced.hold_after_step],
     );
-    for (name, m) in ["fast ramps", "holds after a step"].iter().zip(&moved) {
-        if *m > 0 {
-            progress(&format!(
-                "hold-out: {m} more segment(s) held out so that {name} are held out too"
-            ));
-        }
-    }
+    let holdout_cover: Vec<HoldoutCover> = ["fast_ramp", "hold_after_step"]
+        .iter()
+        .zip(&moved)
+        .map(|(&regime, &segments_moved)| HoldoutCover {
+            regime,
+            segments_moved,
+        })
+        .collect();
     let extrapolated = crate::split::extrapolated(&loads, &heldout);
     // The training part keeps the file's line numbers, so that a refusal
     // of the base fit points at the record's own lines.
@@ -375,7 +376,8 @@ pub fn diagnose_with_progress(
         correlation_length: setup.corr_len,
         min_improvement: cfg.min_improvement,
         min_bic_drop: cfg.min_bic_drop,
-        warnings: model_warnings(&current, &paced),
+        warnings: model_warnings(&current, &paced, samples, &setup.heldout),
+        holdout_cover,
         predicted_base,
         predicted_after,
         heldout: setup.heldout,
@@ -383,21 +385,37 @@ pub fn diagnose_with_progress(
     })
 }
 
+/// Least time the training part must hold the pressure after a step for a
+/// rate law's factor at rest to be the record's, not an extrapolation, s.
+pub const MIN_TRAINING_HOLD_S: f64 = 1.0;
+
 /// What a record leaves open about `effects`, one sentence each.
 ///
-/// A rate law fitted on a record with no hold after a pressure step has
-/// its factor at rest from the ramps alone: nothing in the record shows
-/// the loop while the pressure stands still, which is where a position
-/// loop's set-point spends its time. The project's own rig (Maxwell-slip
-/// friction and viscous damping, host-sim's rate rig) gives a law whose
-/// loop vanishes at rest there, and the feedforward with it trips the
-/// firmware's model check (host-sim/README.md).
-pub fn model_warnings(effects: &Effects, paced: &Regimes) -> Vec<String> {
+/// A rate law fitted on a record whose training part holds the pressure
+/// after a step for under [`MIN_TRAINING_HOLD_S`] has its factor at rest
+/// from the ramps alone: nothing it was fitted on shows the loop while the
+/// pressure stands still, which is where a position loop's set-point
+/// spends its time. The project's own rig (Maxwell-slip friction and
+/// viscous damping, host-sim's rate rig) gives a law whose loop vanishes
+/// at rest there, and the feedforward with it tracks worse than the
+/// paper's model (host-sim/README.md).
+pub fn model_warnings(
+    effects: &Effects,
+    paced: &Regimes,
+    samples: &[Sample],
+    heldout: &[bool],
+) -> Vec<String> {
     let mut warnings = Vec::new();
     if let Some(rate) = &effects.rate {
-        if !paced.hold_after_step.iter().any(|h| *h) {
+        let held_s: f64 = samples
+            .windows(2)
+            .zip(paced.hold_after_step.iter().zip(heldout))
+            .filter(|(_, (hold, out))| **hold && !**out)
+            .map(|(w, _)| (w[1].t_s - w[0].t_s).clamp(0.0, 1.0))
+            .fold(0.0, |a, b| a + b);
+        if held_s < MIN_TRAINING_HOLD_S {
             warnings.push(format!(
-                "the rate law's factor at rest ({:.2}) is an extrapolation: the record has no hold after a pressure step, so nothing in it shows the loop while the pressure stands still; record a few steps with holds of several seconds (pam-lab/DIAGNOSE.md, \"What is still not handled\") before using this model as a feedforward",
+                "the rate law's factor at rest ({:.2}) is an extrapolation: the record's training part holds the pressure after a step for {held_s:.1} s, so nothing the law was fitted on shows the loop while the pressure stands still; record a few steps with holds of several seconds (pam-lab/DIAGNOSE.md, \"What is still not handled\") before using this model as a feedforward",
                 rate.scale_at_rest
             ));
         }
@@ -426,17 +444,37 @@ mod tests {
             rate: Some(RateDependence::linear(0.0, 9.0)),
             ..Effects::NONE
         };
-        let flagged = model_warnings(&with_rate, &paced(&[false; 50]));
+        // 50 Hz, 200 samples.
+        let samples: Vec<Sample> = (0..200)
+            .map(|i| Sample {
+                t_s: i as f64 * 0.02,
+                load_n: 100.0,
+                pressure_mpa: 0.1,
+                contraction: 0.1,
+            })
+            .collect();
+        let (none, all) = (vec![false; 200], vec![true; 200]);
+        let flagged = model_warnings(&with_rate, &paced(&none), &samples, &none);
         assert_eq!(flagged.len(), 1);
         assert!(
-            flagged[0].contains("no hold after a pressure step"),
+            flagged[0].contains("holds the pressure after a step for 0.0 s"),
             "{flagged:?}"
         );
-        // A hold in the record shows the loop at rest: nothing to flag.
-        let mut holds = [false; 50];
-        holds[20] = true;
-        assert!(model_warnings(&with_rate, &paced(&holds)).is_empty());
+        // A 2 s hold in training shows the loop at rest: nothing to flag.
+        let holds: Vec<bool> = (0..200).map(|i| (50..150).contains(&i)).collect();
+        assert!(model_warnings(&with_rate, &paced(&holds), &samples, &none).is_empty());
+        // The same hold held out, or a single sample of one, does not.
+        assert_eq!(
+            model_warnings(&with_rate, &paced(&holds), &samples, &all).len(),
+            1
+        );
+        let mut one = vec![false; 200];
+        one[60] = true;
+        assert_eq!(
+            model_warnings(&with_rate, &paced(&one), &samples, &none).len(),
+            1
+        );
         // Without a rate law the holds do not matter.
-        assert!(model_warnings(&Effects::NONE, &paced(&[false; 50])).is_empty());
+        assert!(model_warnings(&Effects::NONE, &paced(&none), &samples, &none).is_empty());
     }
 }

@@ -265,7 +265,7 @@ fn pressure_motion(samples: &[Sample]) -> PressureMotion {
 /// after a step, the fastest ramp); `after_inner_reversal` is left empty
 /// (all false): it needs the model's tracker, see [`regimes`]. Known before
 /// any fit, so the hold-out can make sure each of them is held out too
-/// (`split::cover_regimes`).
+/// ([`crate::split::cover_regime`]).
 pub fn pressure_regimes(samples: &[Sample]) -> Regimes {
     let n = samples.len();
     let m = pressure_motion(samples);

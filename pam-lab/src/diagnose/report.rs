@@ -22,6 +22,15 @@ pub struct Round {
     pub added: Option<&'static str>,
 }
 
+/// What the hold-out's regime cover did for one regime.
+#[derive(Clone, Debug, Serialize)]
+pub struct HoldoutCover {
+    /// The regime (`fast_ramp`, `hold_after_step`).
+    pub regime: &'static str,
+    /// Training segments moved to the held-out part for it.
+    pub segments_moved: usize,
+}
+
 /// The outcome of a diagnosis.
 #[derive(Clone, Debug, Serialize)]
 pub struct DiagnoseReport {
@@ -83,6 +92,9 @@ pub struct DiagnoseReport {
     /// What the record leaves open about the model it ends with
     /// ([`super::model_warnings`]), one sentence each.
     pub warnings: Vec<String>,
+    /// Segments the hold-out moved to the held-out part so that a regime
+    /// the pressure decides is held out too ([`crate::split::cover_regime`]).
+    pub holdout_cover: Vec<HoldoutCover>,
     /// Predicted contraction of the base and final models (not serialised).
     #[serde(skip)]
     pub predicted_base: Vec<f64>,
@@ -123,6 +135,12 @@ pub fn summary(r: &DiagnoseReport) -> String {
         "diagnose {}: {} training / {} held-out samples (one segment in 3 held out: cycles cut at load changes, drawn)\n",
         r.source, r.train_samples, r.heldout_samples
     ));
+    for c in r.holdout_cover.iter().filter(|c| c.segments_moved > 0) {
+        s.push_str(&format!(
+            "  {} more segment(s) held out so that the {} regime is held out too\n",
+            c.segments_moved, c.regime
+        ));
+    }
     s.push_str(&format!(
         "base model (paper): held-out RMS contraction error {:.5}\n",
         r.rms_before
