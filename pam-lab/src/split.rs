@@ -684,6 +684,30 @@ mod tests {
     }
 
     #[test]
+    fn the_first_segment_is_never_moved() {
+        // The regime in segments 0 (60 samples), 1, 2 (10 each) at 100 N
+        // and 3 (10, the only one at 200 N); segment 4 (100 N) trains
+        // without it. Moving 1 and 2 holds out 20 of 90, short of one in
+        // three; 3 is its load's only segment, and 0, which would reach
+        // it, is the record's first.
+        let loads: Vec<f64> = (0..100)
+            .map(|i| if (80..90).contains(&i) { 200.0 } else { 100.0 })
+            .collect();
+        let cycle: Vec<u32> = (0..100)
+            .map(|i| if i < 60 { 0 } else { (i - 50) / 10 })
+            .collect();
+        let segment = segments(&loads, &cycle);
+        assert_eq!(segment[59..].first(), Some(&0));
+        assert_eq!(segment[99], 4);
+        let regime: Vec<bool> = (0..100).map(|i| i < 90).collect();
+        let mut h = vec![false; 100];
+        assert_eq!(cover_regime(&mut h, &segment, &loads, &regime, &[], 3), 2);
+        assert!(h[..60].iter().all(|x| !x));
+        assert!(h[60..80].iter().all(|x| *x));
+        assert!(h[80..].iter().all(|x| !x));
+    }
+
+    #[test]
     fn a_regime_is_covered_only_under_one_in_2k() {
         // Ten segments of ten samples at one load, the regime in 1..=9.
         let loads = vec![100.0; 100];

@@ -267,8 +267,13 @@ fn pressure_motion(samples: &[Sample]) -> PressureMotion {
 /// any fit, so the hold-out can make sure each of them is held out too
 /// ([`crate::split::cover_regime`]).
 pub fn pressure_regimes(samples: &[Sample]) -> Regimes {
+    pressure_regimes_of(samples, &pressure_motion(samples))
+}
+
+/// [`pressure_regimes`] from the record's motion `m`
+/// ([`pressure_motion`] of `samples`).
+fn pressure_regimes_of(samples: &[Sample], m: &PressureMotion) -> Regimes {
     let n = samples.len();
-    let m = pressure_motion(samples);
     let dt = m.dt_s;
     let mut r = Regimes {
         after_inner_reversal: vec![false; n],
@@ -308,8 +313,8 @@ pub fn pressure_regimes(samples: &[Sample]) -> Regimes {
 /// and the sweeps after a reversal inside the loop from `coeffs`' tracker.
 pub fn regimes(samples: &[Sample], coeffs: &Coeffs, tracker_cfg: TrackerConfig) -> Regimes {
     let n = samples.len();
-    let mut r = pressure_regimes(samples);
     let m = pressure_motion(samples);
+    let mut r = pressure_regimes_of(samples, &m);
     let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
     let pmax = f64::from(coeffs.params().points.max_pressure_mpa);
     let near_step = (0.5 / m.dt_s) as usize;
