@@ -655,6 +655,20 @@ mod tests {
         assert!(h[30..].iter().all(|x| !x));
     }
 
+    /// `count` segments of ten samples at 100 N: loads, cycle numbers and
+    /// segment numbers.
+    fn ten_sample_segments(count: usize) -> (Vec<f64>, Vec<u32>, Vec<u64>) {
+        let loads = vec![100.0; 10 * count];
+        let cycle: Vec<u32> = (0..10 * count as u32).map(|i| i / 10).collect();
+        let segment = segments(&loads, &cycle);
+        (loads, cycle, segment)
+    }
+
+    /// Per sample of [`ten_sample_segments`]: whether it lies in `segs`.
+    fn in_ten_sample_segments(count: usize, segs: &[usize]) -> Vec<bool> {
+        (0..10 * count).map(|i| segs.contains(&(i / 10))).collect()
+    }
+
     #[test]
     fn covering_one_regime_never_takes_the_last_training_segment_of_another() {
         // Eight segments of ten samples at one load; segment 6 held out.
@@ -662,11 +676,8 @@ mod tests {
         // ramps' cover moves 3 (first in hash order, 3, 5, 7, 4, 1, 2, 6),
         // which leaves 5 their last training segment; the holds' cover
         // would move 5 first, and must take 7 instead.
-        let loads = vec![100.0; 80];
-        let cycle: Vec<u32> = (0..80).map(|i| i / 10).collect();
-        let segment = segments(&loads, &cycle);
-        let in_segments =
-            |segs: &[usize]| -> Vec<bool> { (0..80).map(|i| segs.contains(&(i / 10))).collect() };
+        let (loads, cycle, segment) = ten_sample_segments(8);
+        let in_segments = |segs: &[usize]| in_ten_sample_segments(8, segs);
         let (fast, hold) = (in_segments(&[3, 5]), in_segments(&[4, 5, 7]));
         let mut h = in_segments(&[6]);
         let both: [&[bool]; 2] = [&fast, &hold];
@@ -710,12 +721,9 @@ mod tests {
     #[test]
     fn a_regime_is_covered_only_under_one_in_2k() {
         // Ten segments of ten samples at one load, the regime in 1..=9.
-        let loads = vec![100.0; 100];
-        let cycle: Vec<u32> = (0..100).map(|i| i / 10).collect();
-        let segment = segments(&loads, &cycle);
+        let (loads, _, segment) = ten_sample_segments(10);
         let regime: Vec<bool> = (0..100).map(|i| i >= 10).collect();
-        let in_segments =
-            |segs: &[usize]| -> Vec<bool> { (0..100).map(|i| segs.contains(&(i / 10))).collect() };
+        let in_segments = |segs: &[usize]| in_ten_sample_segments(10, segs);
         // Two segments held out: 2/9 of the regime, over one in six.
         let mut h = in_segments(&[3, 7]);
         assert_eq!(cover_regime(&mut h, &segment, &loads, &regime, &[], 3), 0);
