@@ -150,28 +150,29 @@ impl PressureCalibration {
         max_valid: Counts(3900),
     };
 
+    /// The same calibration as a [`LinearCalibration`] in MPa: the checks
+    /// and the conversion are that one's.
+    #[inline]
+    pub const fn linear(&self) -> LinearCalibration {
+        LinearCalibration {
+            zero_counts: self.zero_counts,
+            units_per_count: self.mpa_per_count,
+            min_valid: self.min_valid,
+            max_valid: self.max_valid,
+        }
+    }
+
     /// Check that the calibration can convert: finite, non-zero slope,
     /// finite zero, non-empty window.
     pub fn validate(&self) -> Result<(), HalConfigError> {
-        if !(self.mpa_per_count.is_finite() && self.mpa_per_count != 0.0) {
-            return Err(HalConfigError::Slope);
-        }
-        if !self.zero_counts.is_finite() {
-            return Err(HalConfigError::Zero);
-        }
-        if self.min_valid > self.max_valid {
-            return Err(HalConfigError::Window);
-        }
-        Ok(())
+        self.linear().validate()
     }
 
     /// Counts to MPa; a code outside the valid window is
     /// [`SensorErrorKind::InvalidCode`].
+    #[inline]
     pub fn to_mpa(&self, counts: Counts) -> Result<f32, SensorErrorKind> {
-        if counts < self.min_valid || counts > self.max_valid {
-            return Err(SensorErrorKind::InvalidCode);
-        }
-        Ok((f32::from(counts.0) - self.zero_counts) * self.mpa_per_count)
+        self.linear().to_value(counts)
     }
 
     /// MPa to the nearest code, saturating at the converter's range
