@@ -168,22 +168,55 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
     Ok(())
 }
 
-/// Pressure–contraction loops of the longest held-out block: measured (grey)
-/// against the paper's model (left) and the model with the added effects
-/// (right).
+/// The held-out block the loops plot shows, and why: the one where the
+/// added effects cut the squared error most (so that the loops show what
+/// the effect does: the minor loops of a memory, the fast ramps of a rate
+/// law), or the longest one when they cut nothing (no effect added). A
+/// noisy load column can cut the blocks into short pieces; the first may
+/// be a single sample.
+fn shown_block(
+    heldout: &[bool],
+    measured: &[f64],
+    base: &[f64],
+    after: &[f64],
+) -> Option<((usize, usize), &'static str)> {
+    let blocks = runs(heldout);
+    let cut = |&(a, b): &(usize, usize)| -> f64 {
+        (a..=b)
+            .filter_map(|i| {
+                let (x, pb, pa) = (*measured.get(i)?, *base.get(i)?, *after.get(i)?);
+                let d = (x - pb).powi(2) - (x - pa).powi(2);
+                d.is_finite().then_some(d)
+            })
+            .sum()
+    };
+    let best = blocks
+        .iter()
+        .map(|blk| (*blk, cut(blk)))
+        .max_by(|x, y| x.1.total_cmp(&y.1));
+    match best {
+        Some((blk, c)) if c > 0.0 => Some((blk, "where the added effects cut the error most")),
+        _ => blocks
+            .into_iter()
+            .max_by_key(|&(a, b)| b - a)
+            .map(|blk| (blk, "the longest")),
+    }
+}
+
+/// Pressure–contraction loops of one held-out block ([`shown_block`]):
+/// measured (grey) against the paper's model (left) and the model with the
+/// added effects (right).
 pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
     let s = &record.samples;
-    // The longest held-out block (a noisy load column can cut the blocks
-    // into short pieces; the first may be a single sample).
-    let (a, b) = runs(&r.heldout)
-        .into_iter()
-        .max_by_key(|&(a, b)| b - a)
-        .unwrap_or((0, s.len().saturating_sub(1)));
+    let measured: Vec<f64> = s.iter().map(|x| x.contraction).collect();
+    let ((a, b), why) = shown_block(&r.heldout, &measured, &r.predicted_base, &r.predicted_after)
+        .unwrap_or(((0, s.len().saturating_sub(1)), "the whole record"));
     let idx: Vec<usize> = (a..=b).collect();
     let xmax = idx
         .iter()
         .map(|&i| s[i].contraction)
         .chain(idx.iter().map(|&i| r.predicted_after[i]))
+        .chain(idx.iter().map(|&i| r.predicted_base[i]))
         .filter(|v| v.is_finite())
         .fold(0.0f64, f64::max)
         * 1.05;
@@ -193,10 +226,21 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
         .fold(0.0f64, f64::max)
         * 1.05;
     crate::plot::ensure_font();
-    let root = BitMapBackend::new(path, (1600, 700)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1600, 730)).into_drawing_area();
     root.fill(&WHITE)?;
-    let panels = root.split_evenly((1, 2));
     let load = idx.first().map_or(0.0, |&i| s[i].load_n);
+    let (t_a, t_b) = (
+        idx.first().map_or(0.0, |&i| s[i].t_s),
+        idx.last().map_or(0.0, |&i| s[i].t_s),
+    );
+    let root = root.titled(
+        &format!(
+            "{}: held-out block {t_a:.0}–{t_b:.0} s at {load:.0} N ({why})",
+            r.source
+        ),
+        ("sans-serif", 20),
+    )?;
+    let panels = root.split_evenly((1, 2));
     for (k, panel) in panels.iter().enumerate() {
         let (pred, color, name, rms) = if k == 0 {
             (
@@ -219,7 +263,7 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
         };
         let mut chart = ChartBuilder::on(panel)
             .caption(
-                format!("held-out block at {load:.0} N: {name} (held-out RMS {rms:.5})"),
+                format!("{name} (held-out RMS of the record {rms:.5})"),
                 ("sans-serif", 20),
             )
             .margin(12)
@@ -263,7 +307,25 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
 
 #[cfg(test)]
 mod tests {
-    use super::runs;
+    use super::{runs, shown_block};
+
+    #[test]
+    fn the_loops_show_where_the_effects_act() {
+        // Two held-out blocks: a long one the effect leaves as it was, a
+        // short one where it removes the error.
+        let heldout = [true, true, true, true, false, true, true];
+        let measured = [0.0; 7];
+        let base = [0.1, 0.1, 0.1, 0.1, 0.0, 0.2, 0.2];
+        let after = [0.1, 0.1, 0.1, 0.1, 0.0, 0.0, 0.0];
+        let (blk, why) = shown_block(&heldout, &measured, &base, &after).unwrap();
+        assert_eq!(blk, (5, 6));
+        assert!(why.contains("cut"), "{why}");
+        // Nothing added: the longest.
+        let (blk, why) = shown_block(&heldout, &measured, &base, &base).unwrap();
+        assert_eq!(blk, (0, 3));
+        assert_eq!(why, "the longest");
+        assert!(shown_block(&[false; 3], &[0.0; 3], &[0.0; 3], &[0.0; 3]).is_none());
+    }
 
     #[test]
     fn runs_of_a_mask() {
