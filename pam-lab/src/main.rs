@@ -57,7 +57,9 @@ enum ProgressMode {
 /// The fit's options, shared by `fit` and `diagnose` (diagnose's base fit).
 #[derive(Args)]
 struct FitOptions {
-    /// Maximum operating pressure Pmax, MPa (default: measured from the record).
+    /// Maximum operating pressure Pmax, where the loop closes, MPa (default:
+    /// the record's top; `diagnose` then refits it up to 1.25× the top, and
+    /// holds a given one).
     #[arg(long, value_name = "MPA")]
     pmax: Option<f64>,
     /// Load step of the regression and growth factors, N.

@@ -32,7 +32,8 @@ fn run(name: &str, csv: String) -> DiagnoseReport {
 
 /// The diagnosis of `plant` under the second protocol, once per binary.
 fn protocol_b(plant: Plant) -> &'static DiagnoseReport {
-    static CACHE: [OnceLock<DiagnoseReport>; 7] = [const { OnceLock::new() }; 7];
+    static CACHE: [OnceLock<DiagnoseReport>; Plant::ALL.len()] =
+        [const { OnceLock::new() }; Plant::ALL.len()];
     let slot = Plant::ALL.iter().position(|p| *p == plant).unwrap_or(0);
     CACHE[slot].get_or_init(|| run(&format!("b_{plant:?}"), hidden_plants::csv_b(plant, 1)))
 }

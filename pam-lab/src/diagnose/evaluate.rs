@@ -95,6 +95,11 @@ pub(super) struct Setup<'a> {
     pub(super) corr_len: f64,
     /// The record's contraction noise floor.
     pub(super) noise_contraction: f64,
+    /// Where the joint refit may move `Pmax`: from this (the record's top
+    /// pressure, when `Pmax` was measured from it) up to
+    /// [`super::PMAX_CEILING_OF_TOP`] times it, or `None`: held (given by
+    /// the user).
+    pub(super) pmax_floor_mpa: Option<f32>,
     /// Each sample's bin of measured contraction along the record's stroke
     /// ([`stroke_bins`]).
     pub(super) stroke_bin: Vec<usize>,

@@ -75,7 +75,7 @@ pub use crate::stats::{correlation_length, NoiseFloor};
 pub use candidates::{CandidateResult, EffectKind, Signature, RATE_EXPONENTS};
 pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use paths::{PathSummary, PATHS_MAX};
-pub use refit::BASE_REFIT_FIELDS;
+pub use refit::{BASE_REFIT_FIELDS, PMAX_CEILING_OF_TOP};
 pub use regimes::{hindsight_branches, pressure_regimes, regimes, Regimes};
 pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, HoldoutCover, Round};
 
@@ -279,6 +279,10 @@ pub fn diagnose_with_progress(
         branches,
         corr_len: 1.0,
         noise_contraction: noise.contraction,
+        pmax_floor_mpa: match fit.pmax_source {
+            crate::fit::PmaxSource::Measured => Some(fit.params.points.max_pressure_mpa),
+            crate::fit::PmaxSource::Given => None,
+        },
         stroke_bin: evaluate::stroke_bins(samples),
     };
     let base_res = setup.residuals(Effects::NONE);
@@ -291,27 +295,31 @@ pub fn diagnose_with_progress(
         2 * PRESSURE_MEDIAN_HALF_WIDTH + 1,
     );
     let (paper_errors, _) = setup.errors(&setup.coeffs, Effects::NONE, 0);
-    // The base the effects are judged against: the paper's model refitted
-    // on the simulated training record by the same joint refit every
-    // candidate gets, so that a candidate's gain is the effect's, not the
-    // refit's.
-    let (model_params, model_coeffs) = refit_base(
-        &setup,
-        base_params,
-        setup.coeffs,
-        Effects::NONE,
-        cfg.refit_iterations,
-    );
-    let (base_errors, _) = setup.errors(&model_coeffs, Effects::NONE, 0);
-    let refit_base_params = model_params;
-    let refit_base_coeffs = model_coeffs;
-
-    let (chosen, paths) = paths::search(
-        &setup,
-        paths::Path::base(model_params, model_coeffs, base_errors.clone()),
-        cfg,
-        progress,
-    );
+    let mut outcome = search(&setup, base_params, cfg, progress);
+    // `Pmax` refitted up to its ceiling: the record does not say where the
+    // loop closes (the cost falls all the way to an arbitrary bound, `Pmax`
+    // standing in for the curve's shape, as on a Maxwell-slip rig whose
+    // top reversal is the loop's tip). The diagnosis is made again with
+    // `Pmax` at the record's top.
+    let pmax_record_top_mpa = setup.pmax_floor_mpa;
+    let mut pmax_at_ceiling = false;
+    if let Some(floor) = pmax_record_top_mpa {
+        let ceiling = PMAX_CEILING_OF_TOP * floor;
+        let at_ceiling = |p: &pam_core::Params| p.points.max_pressure_mpa >= ceiling * (1.0 - 1e-3);
+        if at_ceiling(&outcome.base_params) || at_ceiling(&outcome.chosen.params) {
+            progress("Pmax refitted went to its ceiling: again with Pmax at the record's top");
+            setup.pmax_floor_mpa = None;
+            outcome = search(&setup, base_params, cfg, progress);
+            pmax_at_ceiling = true;
+        }
+    }
+    let Outcome {
+        base_params: refit_base_params,
+        base_coeffs: refit_base_coeffs,
+        base_errors,
+        chosen,
+        paths,
+    } = outcome;
     let paths::Path {
         params: model_params,
         coeffs: model_coeffs,
@@ -371,6 +379,8 @@ pub fn diagnose_with_progress(
         base_params: refit_base_params,
         final_params: model_params,
         effects: current,
+        pmax_record_top_mpa: pmax_record_top_mpa.map(f64::from),
+        pmax_at_ceiling,
         heldout_samples,
         train_samples: samples.len() - heldout_samples,
         correlation_length: setup.corr_len,
@@ -383,6 +393,49 @@ pub fn diagnose_with_progress(
         heldout: setup.heldout,
         regimes: setup.regimes,
     })
+}
+
+/// The base refitted and the path chosen, for one way of treating `Pmax`
+/// ([`Setup::pmax_floor_mpa`]).
+struct Outcome {
+    base_params: pam_core::Params,
+    base_coeffs: Coeffs,
+    base_errors: ModelErrors,
+    chosen: paths::Path,
+    paths: Vec<PathSummary>,
+}
+
+/// The base the effects are judged against (the paper's model refitted on
+/// the simulated training record by the same joint refit every candidate
+/// gets, so that a candidate's gain is the effect's, not the refit's), and
+/// the search over effects from it.
+fn search(
+    setup: &Setup<'_>,
+    base_params: pam_core::Params,
+    cfg: &DiagnoseConfig,
+    progress: &dyn Fn(&str),
+) -> Outcome {
+    let (params, coeffs) = refit_base(
+        setup,
+        base_params,
+        setup.coeffs,
+        Effects::NONE,
+        cfg.refit_iterations,
+    );
+    let (base_errors, _) = setup.errors(&coeffs, Effects::NONE, 0);
+    let (chosen, paths) = paths::search(
+        setup,
+        paths::Path::base(params, coeffs, base_errors.clone()),
+        cfg,
+        progress,
+    );
+    Outcome {
+        base_params: params,
+        base_coeffs: coeffs,
+        base_errors,
+        chosen,
+        paths,
+    }
 }
 
 /// Least time the training part must hold the pressure after a step for a

@@ -7,8 +7,11 @@ use super::evaluate::Setup;
 
 /// Base parameters the joint refit moves: the critical points (the curve's
 /// shape through the stroke), the stroke ends, the ellipse height and the
-/// load family (the cubic's growth, the regressions of the stroke ends).
-pub const BASE_REFIT_FIELDS: [&str; 10] = [
+/// load family (the cubic's growth, the regressions of the stroke ends),
+/// and the maximum operating pressure `Pmax` where the loop closes (moved
+/// only when it was measured, never below the record's top: see
+/// [`Setup::pmax_floor_mpa`]).
+pub const BASE_REFIT_FIELDS: [&str; 11] = [
     "tangency.pressure_mpa",
     "inflection.pressure_mpa",
     "max_contraction",
@@ -19,7 +22,17 @@ pub const BASE_REFIT_FIELDS: [&str; 10] = [
     "inflection.contraction",
     "root_regression_per_step",
     "max_regression_per_step",
+    "max_pressure_mpa",
 ];
+
+/// Highest `Pmax` the refit may reach, as a multiple of the record's top
+/// pressure: the feedforward commands up to `Pmax` and the firmware's
+/// over-pressure guard sits above it, so a model may extrapolate the loop's
+/// closing point a little beyond what was measured, not far.
+pub const PMAX_CEILING_OF_TOP: f32 = 1.25;
+
+/// Index of `max_pressure_mpa` in [`BASE_REFIT_FIELDS`].
+const PMAX_FIELD: usize = 10;
 
 fn base_field(p: &mut Params, k: usize) -> Option<&mut f32> {
     match k {
@@ -33,6 +46,7 @@ fn base_field(p: &mut Params, k: usize) -> Option<&mut f32> {
         7 => Some(&mut p.points.inflection.contraction),
         8 => Some(&mut p.root_regression_per_step),
         9 => Some(&mut p.max_regression_per_step),
+        10 => Some(&mut p.points.max_pressure_mpa),
         _ => None,
     }
 }
@@ -60,12 +74,23 @@ pub(super) fn refit_base(
         );
         v.iter().all(|r| r.is_finite()).then_some(v)
     };
+    // `Pmax` is bounded, not held by an edge of the valid parameters: a
+    // step past a bound is projected onto it and the rest of the step
+    // stands (rejecting it would stop every step that wants a lower `Pmax`
+    // at the record's top, the usual case), and a held `Pmax` stays.
+    let pmax_range = setup
+        .pmax_floor_mpa
+        .map(|floor| (floor, PMAX_CEILING_OF_TOP * floor));
     let with = |p: &Params, delta: &[f64]| -> Option<(Params, Coeffs)> {
         let mut q = *p;
         for (k, d) in delta.iter().enumerate() {
             let f = base_field(&mut q, k)?;
             *f += *d as f32;
         }
+        q.points.max_pressure_mpa = match pmax_range {
+            Some((lo, hi)) => q.points.max_pressure_mpa.clamp(lo, hi),
+            None => p.points.max_pressure_mpa,
+        };
         Coeffs::new(q).ok().map(|c| (q, c))
     };
     let (mut p, mut c) = (params, coeffs);
@@ -86,6 +111,16 @@ pub(super) fn refit_base(
                 let mut q = p;
                 let v = base_field(&mut q, k).map_or(0.0, |f| f64::from(*f));
                 let h = 1e-3 * v.abs().max(1e-2);
+                if k == PMAX_FIELD {
+                    return match pmax_range {
+                        None => {
+                            held[k] = true;
+                            h
+                        }
+                        Some((_, hi)) if v + h > f64::from(hi) => -h,
+                        Some(_) => h,
+                    };
+                }
                 let mut d = vec![0.0; m];
                 d[k] = h;
                 if with(&p, &d).is_some() {
@@ -105,6 +140,16 @@ pub(super) fn refit_base(
                     None => out.fill(f64::NAN),
                 }
             });
+        // `Pmax` on a bound whose cost falls further out is held there (the
+        // bound is active): solved free, the other parameters' step would
+        // count on a move of `Pmax` that the projection then takes back.
+        if let Some((lo, hi)) = pmax_range {
+            let v = p.points.max_pressure_mpa;
+            let descent = -jac.column(PMAX_FIELD).dot(&r);
+            if (v <= lo && descent < 0.0) || (v >= hi && descent > 0.0) {
+                held[PMAX_FIELD] = true;
+            }
+        }
         for (k, held) in held.iter_mut().enumerate() {
             if *held || jac.column(k).iter().any(|v| !v.is_finite()) {
                 *held = true;
@@ -163,7 +208,7 @@ mod tests {
     use super::*;
     use crate::data::Sample;
     use crate::diagnose::evaluate::simulate;
-    use pam_core::Branch;
+    use pam_core::{Branch, TrackerConfig};
 
     /// `p` with refit field `k` pushed to the edge of the valid parameters
     /// (the last valid value found by bisection between `v` and `4·v`), or
@@ -193,21 +238,17 @@ mod tests {
         Some(set(lo))
     }
 
-    #[test]
-    fn the_refit_leaves_the_edge_of_the_valid_parameters() {
-        // A record of the default muscle (triangles at two loads), and a
-        // base that starts where one parameter's forward step leaves the
-        // valid parameters, as `fit` often ends: the refit must still
-        // move towards the muscle (it used to stop at the first such
-        // column and return the base unchanged).
-        let truth = Params::DEFAULT;
+    /// Triangles 0 → `top_mpa` → 0 at two loads, the muscle `truth`'s
+    /// contraction on branches known from the pressure, and the joint
+    /// refit's setup for them around `start` (one sample in three held
+    /// out).
+    fn triangles(truth: Params, top_mpa: f64) -> (Vec<Sample>, Vec<Branch>, TrackerConfig) {
         let truth_coeffs = Coeffs::new(truth).unwrap();
-        let pmax = f64::from(truth.points.max_pressure_mpa);
         let mut samples = Vec::new();
         for (block, load) in [truth.min_load_n, truth.max_load_n].iter().enumerate() {
             for i in 0..800 {
                 let phase = (i % 400) as f64 / 200.0;
-                let p = pmax * if phase < 1.0 { phase } else { 2.0 - phase };
+                let p = top_mpa * if phase < 1.0 { phase } else { 2.0 - phase };
                 samples.push(Sample {
                     t_s: (block * 800 + i) as f64 * 0.02,
                     load_n: f64::from(*load),
@@ -232,6 +273,83 @@ mod tests {
         for (s, x) in samples.iter_mut().zip(x) {
             s.contraction = x;
         }
+        (samples, branches, tracker)
+    }
+
+    fn setup<'a>(
+        samples: &'a [Sample],
+        branches: Vec<Branch>,
+        tracker: TrackerConfig,
+        start: &Coeffs,
+        pmax_floor_mpa: Option<f32>,
+    ) -> Setup<'a> {
+        let n = samples.len();
+        Setup {
+            samples,
+            coeffs: *start,
+            tracker,
+            heldout: (0..n).map(|i| i % 3 == 0).collect(),
+            train_idx: (0..n).filter(|i| i % 3 != 0).collect(),
+            regimes: super::super::regimes(samples, start, tracker),
+            branches,
+            corr_len: 1.0,
+            noise_contraction: 0.0,
+            pmax_floor_mpa,
+            stroke_bin: super::super::evaluate::stroke_bins(samples),
+        }
+    }
+
+    #[test]
+    fn a_pmax_held_on_its_floor_leaves_the_rest_of_the_step() {
+        // The muscle closes its loop at 0.5 MPa, the refit may not put
+        // Pmax below 0.52: every Gauss–Newton step wants a lower Pmax.
+        // Rejecting such a step (the first version) stopped the whole
+        // refit there; the bound must be held and the others refitted.
+        let truth = Params::DEFAULT;
+        let pmax = truth.points.max_pressure_mpa;
+        let (samples, branches, tracker) = triangles(truth, f64::from(pmax));
+        let floor = pmax + 0.02;
+        let mut start = truth;
+        start.points.max_pressure_mpa = floor;
+        start.ellipse_height_mpa *= 1.3;
+        start.points.tangency.pressure_mpa *= 1.05;
+        let start_coeffs = Coeffs::new(start).unwrap();
+        let setup = setup(&samples, branches, tracker, &start_coeffs, Some(floor));
+        let (before, _) = setup.errors(&start_coeffs, Effects::NONE, 0);
+        let (p, c) = refit_base(&setup, start, start_coeffs, Effects::NONE, 3);
+        let (after, _) = setup.errors(&c, Effects::NONE, 0);
+        assert_eq!(p.points.max_pressure_mpa, floor);
+        assert!(
+            after.rms_train < 0.5 * before.rms_train,
+            "training RMS {} -> {}",
+            before.rms_train,
+            after.rms_train
+        );
+    }
+
+    #[test]
+    fn a_given_pmax_is_held() {
+        let truth = Params::DEFAULT;
+        let (samples, branches, tracker) = triangles(truth, 0.45);
+        let mut start = truth;
+        start.ellipse_height_mpa *= 1.3;
+        let start_coeffs = Coeffs::new(start).unwrap();
+        let setup = setup(&samples, branches, tracker, &start_coeffs, None);
+        let (p, _) = refit_base(&setup, start, start_coeffs, Effects::NONE, 3);
+        assert_eq!(p.points.max_pressure_mpa, truth.points.max_pressure_mpa);
+        assert_ne!(p.ellipse_height_mpa, start.ellipse_height_mpa);
+    }
+
+    #[test]
+    fn the_refit_leaves_the_edge_of_the_valid_parameters() {
+        // A record of the default muscle (triangles at two loads), and a
+        // base that starts where one parameter's forward step leaves the
+        // valid parameters, as `fit` often ends: the refit must still
+        // move towards the muscle (it used to stop at the first such
+        // column and return the base unchanged).
+        let truth = Params::DEFAULT;
+        let pmax = f64::from(truth.points.max_pressure_mpa);
+        let (samples, branches, tracker) = triangles(truth, pmax);
         let (field, edge) = (0..BASE_REFIT_FIELDS.len())
             .find_map(|k| at_edge(truth, k).map(|p| (k, p)))
             .expect("some refit parameter has an edge within 4x its default");
@@ -245,19 +363,7 @@ mod tests {
             BASE_REFIT_FIELDS[field]
         );
         let edge_coeffs = Coeffs::new(edge).unwrap();
-        let n = samples.len();
-        let setup = Setup {
-            samples: &samples,
-            coeffs: edge_coeffs,
-            tracker,
-            heldout: (0..n).map(|i| i % 3 == 0).collect(),
-            train_idx: (0..n).filter(|i| i % 3 != 0).collect(),
-            regimes: super::super::regimes(&samples, &edge_coeffs, tracker),
-            branches,
-            corr_len: 1.0,
-            noise_contraction: 0.0,
-            stroke_bin: super::super::evaluate::stroke_bins(&samples),
-        };
+        let setup = setup(&samples, branches, tracker, &edge_coeffs, None);
         let (before, _) = setup.errors(&edge_coeffs, Effects::NONE, 0);
         let (p, c) = refit_base(&setup, edge, edge_coeffs, Effects::NONE, 3);
         let (after, _) = setup.errors(&c, Effects::NONE, 0);

@@ -79,6 +79,14 @@ pub struct DiagnoseReport {
     pub final_params: Params,
     /// The final model's effects.
     pub effects: Effects,
+    /// The record's top pressure, MPa, where `Pmax` started when it was
+    /// measured (the joint refit may raise it: a loop still open at the
+    /// record's top closes above it); `None` when `--pmax` gave it (held).
+    pub pmax_record_top_mpa: Option<f64>,
+    /// `Pmax` refitted went to its ceiling ([`super::PMAX_CEILING_OF_TOP`]
+    /// times the record's top): the record does not say where the loop
+    /// closes, and the diagnosis was made again with `Pmax` at the top.
+    pub pmax_at_ceiling: bool,
     /// Samples held out and trained on.
     pub heldout_samples: usize,
     /// Training samples.
@@ -126,6 +134,11 @@ pub struct CandidateSummary {
     /// Held-out RMS contraction error with it added to the base model.
     pub rms: f64,
 }
+
+/// Relative rise of `Pmax` over the record's top that the summary reports
+/// (a smaller one is within what the refit moves it on a loop that does
+/// close at the top: up to 0.3 % on the no-effect plants and example_1).
+const PMAX_MOVED: f64 = 0.01;
 
 /// A short summary a person can read.
 pub fn summary(r: &DiagnoseReport) -> String {
@@ -226,6 +239,20 @@ pub fn summary(r: &DiagnoseReport) -> String {
         r.above_noise_after,
         pct(r.share_removed())
     ));
+    if r.pmax_at_ceiling {
+        s.push_str(&format!(
+            "Pmax held at the record's top: refitted, it went to its ceiling ({:.2}x the top), so the record does not say where the loop closes\n",
+            super::PMAX_CEILING_OF_TOP
+        ));
+    }
+    if let Some(top) = r.pmax_record_top_mpa {
+        let pmax = f64::from(r.final_params.points.max_pressure_mpa);
+        if pmax > top * (1.0 + PMAX_MOVED) {
+            s.push_str(&format!(
+                "Pmax refitted {top:.4} -> {pmax:.4} MPa: the loop is still open at the record's top pressure and closes above it (the model extrapolates there)\n"
+            ));
+        }
+    }
     for w in &r.warnings {
         s.push_str(&format!("warning: {w}\n"));
     }

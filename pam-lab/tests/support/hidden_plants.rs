@@ -352,6 +352,17 @@ pub fn csv(plant: Plant, seed: u64, short: bool) -> String {
     to_csv(&drive, &x, seed, plant as u64)
 }
 
+/// [`csv`] of a muscle whose loop closes at `pmax_mpa`, above the
+/// protocol's 0.5 MPa top: the record's top reversal lies inside the loop
+/// (a rig run below its muscle's maximum operating pressure).
+pub fn csv_below_pmax(plant: Plant, seed: u64, pmax_mpa: f64) -> String {
+    let drive = protocol(seed, true);
+    let mut params = params_for(plant);
+    params.points.max_pressure_mpa = pmax_mpa as f32;
+    let x = respond_with(plant, params, &drive);
+    to_csv(&drive, &x, seed, plant as u64 ^ 0x50)
+}
+
 /// The second rig protocol, unlike the examples' in every respect the
 /// diagnosis could lean on: sampled at 100 Hz; six load blocks at 80 N,
 /// 480 N and four loads drawn between them (to 10 N), in a random order;
