@@ -31,9 +31,20 @@ pub struct SafetyConfig {
     ///
     /// [`Fault::OutOfRange`]: super::Fault::OutOfRange
     pub load_margin_n: f32,
-    /// Over-pressure: a plausible pressure reading above the model's `Pmax`
-    /// by more than this, MPa (> 0), is [`Fault::OverPressure`]. The loop
-    /// never commands more than `Pmax`, so a chamber above it means the
+    /// Highest pressure the loop commands, MPa (> 0): the muscle's rating,
+    /// or the top pressure it was characterised at, whichever is lower.
+    /// The pressure command is clamped to the lower of this and the model's
+    /// `Pmax` (where its loop closes), and over-pressure is judged from
+    /// that lower limit. A model's `Pmax` may lie above the record it was
+    /// identified from (`pam-lab diagnose` refits it up to 1.25× the
+    /// record's top, pam-lab/DIAGNOSE.md); this limit, a property of the
+    /// hardware, keeps such a model from commanding pressures the muscle
+    /// never saw.
+    pub max_command_mpa: f32,
+    /// Over-pressure: a plausible pressure reading above the commanded
+    /// limit (the lower of the model's `Pmax` and `max_command_mpa`) by
+    /// more than this, MPa (> 0), is [`Fault::OverPressure`]. The loop
+    /// never commands more than that limit, so a chamber above it means the
     /// inlet or the exhaust is not doing what it is told (inlet stuck open,
     /// exhaust stuck closed while the muscle is squeezed) or a stall let
     /// the inlet run.
@@ -232,6 +243,10 @@ impl ControllerConfig {
             // 5 % of the 100–600 N range of `Params::DEFAULT`; > 15 σ of a
             // 1.5 N RMS load cell.
             load_margin_n: 25.0,
+            // host-sim's muscle is characterised to 0.5 MPa on a 0.6 MPa
+            // supply; 0.54 + the 0.05 margin trips 10 kPa below the supply,
+            // so an inlet stuck open is caught whatever `Pmax` a model has.
+            max_command_mpa: 0.54,
             // Pmax 0.5 + 0.05 MPa: 60 σ of the rig's pressure noise, and
             // below the 0.6 MPa supply an inlet stuck open reaches.
             overpressure_margin_mpa: 0.05,
@@ -304,6 +319,7 @@ impl ControllerConfig {
                 Setting::ContractionRange,
             ),
             (non_negative(s.load_margin_n), Setting::LoadMarginN),
+            (positive(s.max_command_mpa), Setting::MaxCommandMpa),
             (
                 positive(s.overpressure_margin_mpa),
                 Setting::OverpressureMarginMpa,
@@ -357,6 +373,8 @@ pub enum Setting {
     ContractionRange,
     /// `load_margin_n`: finite and ≥ 0 N.
     LoadMarginN,
+    /// `max_command_mpa`: finite and > 0 MPa.
+    MaxCommandMpa,
     /// `overpressure_margin_mpa`: finite and > 0 MPa.
     OverpressureMarginMpa,
     /// `supply_loss_flow`: in (0, 1].
@@ -399,6 +417,7 @@ impl Setting {
             Setting::PressureRange => "pressure_min_mpa",
             Setting::ContractionRange => "contraction_min",
             Setting::LoadMarginN => "load_margin_n",
+            Setting::MaxCommandMpa => "max_command_mpa",
             Setting::OverpressureMarginMpa => "overpressure_margin_mpa",
             Setting::SupplyLossFlow => "supply_loss_flow",
             Setting::SupplyLossRiseMpa => "supply_loss_rise_mpa",
@@ -425,9 +444,10 @@ impl Setting {
             Setting::PressureRange => "need finite pressure_min_mpa < pressure_max_mpa",
             Setting::ContractionRange => "need finite contraction_min < contraction_max",
             Setting::LoadMarginN => "must be finite and >= 0 N",
-            Setting::OverpressureMarginMpa | Setting::SupplyLossRiseMpa | Setting::VentFallMpa => {
-                "must be finite and > 0 MPa"
-            }
+            Setting::MaxCommandMpa
+            | Setting::OverpressureMarginMpa
+            | Setting::SupplyLossRiseMpa
+            | Setting::VentFallMpa => "must be finite and > 0 MPa",
             Setting::SupplyLossFlow | Setting::VentFlow => "must be in (0, 1]",
             Setting::VentMinMpa => "must be finite and >= 0 MPa",
             Setting::ImplausibleLagS | Setting::ImplausibleSettleS => "must be finite and >= 0 s",

@@ -5,9 +5,11 @@
 //! * The desired contraction is clamped to the active model's stroke
 //!   `[R_i, Rx_i]`: outside it no pressure holds it, and the integrator
 //!   would wind up chasing it.
-//! * The pressure command is clamped to `[0, Pmax]` of the model: the muscle
-//!   cannot hold negative gauge pressure and the model is not calibrated
-//!   above `Pmax`.
+//! * The pressure command is clamped to `[0, min(Pmax, max_command_mpa)]`:
+//!   the muscle cannot hold negative gauge pressure, the model is not
+//!   calibrated above `Pmax`, and the hardware's limit
+//!   ([`SafetyConfig::max_command_mpa`](super::config::SafetyConfig::max_command_mpa))
+//!   holds whatever `Pmax` a model brings.
 //! * The integral term is clamped to `±integral_limit_mpa`, and it is not
 //!   advanced while the pressure command is saturated in the direction the
 //!   error pushes it (conditional integration): together they bound windup
@@ -74,20 +76,25 @@ pub(super) struct Command {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Law {
     pub integral_mpa: f32,
+    /// Highest pressure command, MPa: the lower of the model's `Pmax` and
+    /// the hardware's [`SafetyConfig::max_command_mpa`](super::config::SafetyConfig::max_command_mpa).
+    max_command_mpa: f32,
     inverse: Option<ModelInverse>,
     state: InverseState<MEMORY_DEPTH>,
 }
 
 impl Law {
-    /// The law for a validated configuration (the inverse's constants are
+    /// The law for a validated configuration and a model whose loop closes
+    /// at `pmax_mpa` (the inverse's constants and the command's limit are
     /// computed here, once).
-    pub fn new(cfg: &ControllerConfig) -> Result<Law, Error> {
+    pub fn new(cfg: &ControllerConfig, pmax_mpa: f32) -> Result<Law, Error> {
         let inverse = match inverted_effects(&cfg.feedforward) {
             Some(e) => Some(ModelInverse::new(e, cfg.dt_s)?),
             None => None,
         };
         Ok(Law {
             integral_mpa: 0.0,
+            max_command_mpa: pmax_mpa.min(cfg.safety.max_command_mpa),
             inverse,
             state: InverseState::default(),
         })
@@ -184,9 +191,9 @@ impl Law {
             }
         };
         let error = x_ref - contraction;
-        let max_mpa = model.max_pressure_mpa();
+        let max_mpa = self.max_command_mpa;
         let unclamped_mpa = feedforward_mpa + cfg.kp_mpa * error + self.integral_mpa;
-        // Clamp: the pressure command to the model's range [0, Pmax].
+        // Clamp: the pressure command to [0, min(Pmax, max_command_mpa)].
         let pressure_cmd_mpa = clamp(unclamped_mpa, 0.0, max_mpa);
         // Anti-windup, conditional integration: hold the integrator while the
         // command is saturated and the error would push it further out.

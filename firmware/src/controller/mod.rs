@@ -231,7 +231,8 @@ impl Controller {
         // it: the step's worst case stays bounded (bench-m4 `load_switch`).
         tracker.defer_build();
         // `validate` checked the effects and the period the inverse needs.
-        let law = Law::new(&config).map_err(ConfigError::Coefficients)?;
+        let law = Law::new(&config, coeffs.params().points.max_pressure_mpa)
+            .map_err(ConfigError::Coefficients)?;
         Ok(Controller {
             monitor: Monitor::new(
                 &config.safety,

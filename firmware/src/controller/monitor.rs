@@ -6,7 +6,8 @@
 //!   full check that names the first fault; the table is built once from
 //!   the configuration and the coefficients. Per reading, in order: read
 //!   error, non-finite, stuck, outside the plausible range, above the
-//!   safe limit (the pressure's is `Pmax + overpressure_margin_mpa`).
+//!   safe limit (the pressure's is `min(Pmax, max_command_mpa) +
+//!   overpressure_margin_mpa`).
 //! * **Responses** of the pressure to the valve command ([`ResponseRule`]):
 //!   inlet open without a rise ([`Fault::SupplyLoss`]), exhaust open
 //!   without a fall ([`Fault::Implausible`]`(`[`Check::Vent`]`)`).
@@ -346,7 +347,7 @@ impl Monitor {
                     Pressure,
                     s.pressure_min_mpa,
                     s.pressure_max_mpa,
-                    pmax + s.overpressure_margin_mpa,
+                    pmax.min(s.max_command_mpa) + s.overpressure_margin_mpa,
                     Fault::OverPressure,
                 ),
                 Rule::new(

@@ -795,6 +795,40 @@ fn pressure_above_pmax_plus_the_margin_is_over_pressure() {
     assert_eq!(st.fault, Some(Fault::OutOfRange(SensorId::Pressure)));
 }
 
+#[test]
+fn a_model_whose_pmax_lies_above_the_hardware_limit_never_commands_above_it() {
+    // A model whose loop closes at 0.62 MPa (`pam-lab diagnose` may put
+    // `Pmax` up to 1.25x a record's top) on hardware limited to 0.54 MPa.
+    let s = synthetic().safety;
+    let mut params = Params::DEFAULT;
+    params.points.max_pressure_mpa = 0.62;
+    let coeffs = Coeffs::new(params).unwrap();
+    let mut c = Controller::new(coeffs, synthetic(), 200.0).unwrap();
+    // A set-point beyond reach: the command saturates at the limit.
+    let mut highest = 0.0f32;
+    for _ in 0..2_000 {
+        let st = c.update(&good(0.5, 0.0, 200.0), 0.3);
+        assert_eq!(st.fault, None);
+        highest = highest.max(st.pressure_cmd_mpa);
+    }
+    assert_eq!(highest, s.max_command_mpa);
+    // Over-pressure is judged from the limit, not from the model's Pmax.
+    let limit = s.max_command_mpa + s.overpressure_margin_mpa;
+    let mut c = Controller::new(coeffs, synthetic(), 200.0).unwrap();
+    assert_eq!(c.update(&good(limit - 0.005, 0.2, 200.0), 0.2).fault, None);
+    let st = c.update(&good(limit + 0.005, 0.2, 200.0), 0.2);
+    assert_eq!(st.new_fault, Some(Fault::OverPressure));
+    // A model whose Pmax is below the limit keeps its own.
+    let mut c = no_stuck_check();
+    let pmax = Params::DEFAULT.points.max_pressure_mpa;
+    assert!(pmax < s.max_command_mpa);
+    let mut highest = 0.0f32;
+    for _ in 0..2_000 {
+        highest = highest.max(c.update(&good(0.5, 0.0, 200.0), 0.3).pressure_cmd_mpa);
+    }
+    assert_eq!(highest, pmax);
+}
+
 /// Readings at `p` with the contraction `dx` beyond the expansion branch
 /// (or inside the band when `dx` is negative enough), dithered by a count.
 fn beside_band(c: &Controller, k: u32, p: f32, dx: f32) -> Sample {
@@ -1039,6 +1073,16 @@ fn every_setting_names_itself_and_its_requirement() {
     assert_eq!(
         cfg.validate(),
         Err(ConfigError::Invalid(Setting::OverpressureMarginMpa))
+    );
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.safety.max_command_mpa = f32::NAN;
+    assert_eq!(
+        cfg.validate(),
+        Err(ConfigError::Invalid(Setting::MaxCommandMpa))
+    );
+    assert_eq!(
+        std::format!("{}", ConfigError::Invalid(Setting::MaxCommandMpa)),
+        "`max_command_mpa` must be finite and > 0 MPa"
     );
     let mut cfg = ControllerConfig::DEFAULT;
     cfg.safety.latch_window_periods = 0;

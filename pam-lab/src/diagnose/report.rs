@@ -249,7 +249,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
         let pmax = f64::from(r.final_params.points.max_pressure_mpa);
         if pmax > top * (1.0 + PMAX_MOVED) {
             s.push_str(&format!(
-                "Pmax refitted {top:.4} -> {pmax:.4} MPa: the loop is still open at the record's top pressure and closes above it (the model extrapolates there)\n"
+                "Pmax refitted {top:.4} -> {pmax:.4} MPa: the loop is still open at the record's top pressure and closes above it (the model extrapolates there; the firmware commands no more than its `max_command_mpa`)\n"
             ));
         }
     }
