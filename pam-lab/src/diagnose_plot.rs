@@ -203,7 +203,7 @@ fn shown_block(
     }
 }
 
-/// Pressure–contraction loops of one held-out block ([`shown_block`]):
+/// Pressure–contraction loops of one held-out block (`shown_block`):
 /// measured (grey) against the paper's model (left) and the model with the
 /// added effects (right).
 pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {

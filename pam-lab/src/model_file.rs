@@ -1,7 +1,7 @@
 //! Model files: the JSON model (units in the keys), the firmware's coefficient
 //! blob (`pam_core::blob`: magic, version, CRC-32), and a Rust source file of
 //! constants — for the paper's model and for a model with effects
-//! ([`write_model_files`]: JSON version 2 with an `effects` object, blob
+//! ([`model_files`]: JSON version 2 with an `effects` object, blob
 //! version 2, an `EFFECTS` constant).
 
 use std::path::Path;

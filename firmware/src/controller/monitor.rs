@@ -1,14 +1,14 @@
 //! The safety monitor: what makes a [`Fault`], checked every period.
 //!
 //! * **Readings**, before anything else sees them (the mode tracker, the
-//!   law): one rule per sensor in a table ([`Rule`]), used both by the fast
+//!   law): one rule per sensor in a table (`Rule`), used both by the fast
 //!   path (every reading read fine and lies inside its range) and by the
 //!   full check that names the first fault; the table is built once from
 //!   the configuration and the coefficients. Per reading, in order: read
 //!   error, non-finite, stuck, outside the plausible range, above the
 //!   safe limit (the pressure's is `min(Pmax, max_command_mpa) +
 //!   overpressure_margin_mpa`).
-//! * **Responses** of the pressure to the valve command ([`ResponseRule`]):
+//! * **Responses** of the pressure to the valve command (`ResponseRule`):
 //!   inlet open without a rise ([`Fault::SupplyLoss`]), exhaust open
 //!   without a fall ([`Fault::Implausible`]`(`[`Check::Vent`]`)`).
 //! * **The model as a virtual sensor**: the measured contraction against

@@ -10,7 +10,7 @@ use crate::stats::rms_where;
 
 /// Simulate the model (base `coeffs` plus `effects`) over `samples` from the
 /// measured pressure and load, on the given branches (see
-/// [`hindsight_branches`]); one predicted contraction per sample.
+/// [`super::hindsight_branches`]); one predicted contraction per sample.
 pub fn simulate(
     coeffs: &Coeffs,
     effects: Effects,

@@ -50,7 +50,7 @@
 //!    then every remaining candidate is fitted again on the new base, until
 //!    none earns its parameters or [`DiagnoseConfig::max_effects`] are in.
 //!    No candidate earning it is the answer `none`.
-//! 6. **Paths** ([`paths`]). Every first-round earner (at most
+//! 6. **Paths** (`paths.rs`). Every first-round earner (at most
 //!    [`PATHS_MAX`]) starts such a greedy path; a path of two effects is
 //!    kept when its first effect also earns its place on top of the
 //!    second alone (else it falls back to its first effect), and the kept

@@ -10,7 +10,7 @@ use super::evaluate::Setup;
 /// load family (the cubic's growth, the regressions of the stroke ends),
 /// and the maximum operating pressure `Pmax` where the loop closes (moved
 /// only when it was measured, never below the record's top: see
-/// [`Setup::pmax_floor_mpa`]).
+/// `Setup::pmax_floor_mpa`).
 pub const BASE_REFIT_FIELDS: [&str; 11] = [
     "tangency.pressure_mpa",
     "inflection.pressure_mpa",

@@ -98,7 +98,7 @@ fn jump_near(
 /// a switch — a step between two samples larger than six noise sigmas
 /// (`contraction_noise`), the right way for the branch it switches to
 /// (up onto the expansion branch, down onto the contraction branch),
-/// within [`JUMP_SEARCH_S`] of the turn found from the pressure — the
+/// within `JUMP_SEARCH_S` of the turn found from the pressure — the
 /// switch is put at that step: the pressure noise alone places a turn a
 /// few samples either way, and on a steep muscle every sample on the wrong
 /// branch is an error of the whole branch gap.

@@ -64,7 +64,7 @@ pub struct DiagnoseReport {
     pub rounds: Vec<Round>,
     /// Every path followed (one from each first-round earner, when more
     /// than one earned): its effects, held-out error, and whether it was
-    /// kept ([`super::paths`]).
+    /// kept (`paths.rs`).
     pub paths: Vec<super::PathSummary>,
     /// The base model's errors.
     pub base: ModelErrors,
