@@ -156,6 +156,18 @@ fn main() -> ! {
         blob.len(),
         load_n
     );
+    let pmax_mpa = ctl.coeffs().params().points.max_pressure_mpa;
+    let limit_mpa = ctl.config().safety.max_command_mpa;
+    if limit_mpa < pmax_mpa {
+        // The model's loop closes above what the hardware may be
+        // commanded: set-points near the top of its stroke are out of reach.
+        defmt::warn!(
+            "boot: the model's Pmax {} MPa is above max_command_mpa {} MPa: commands stop at {} MPa",
+            pmax_mpa,
+            limit_mpa,
+            limit_mpa
+        );
+    }
     if board.watchdog_reset {
         // The last run stalled: do not resume on our own.
         ctl.latch(Fault::Watchdog);

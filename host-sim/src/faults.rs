@@ -207,7 +207,7 @@ impl Case {
                 "flow command ≤ −0.95 for 100 periods from ≥ 0.05 MPa and pressure fell < 0.01 MPa"
             }
             Case::OverPressure => {
-                "the vent check (above) first, then pressure > `Pmax` + `overpressure_margin_mpa` (0.55 MPa)"
+                "the vent check (above) first, then pressure > `min(Pmax, max_command_mpa)` + `overpressure_margin_mpa` (0.55 MPa)"
             }
             Case::Stall | Case::Panic => {
                 "IWDG not fed for 20 ms: reset, boot writes the safe state and latches"

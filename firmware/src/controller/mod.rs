@@ -14,7 +14,7 @@
 //! 2. check every reading *before anything uses it*: a read error, a
 //!    non-finite value, a reading frozen for more than `stuck_samples`
 //!    samples, a value outside its plausible range, a pressure above
-//!    `Pmax + overpressure_margin_mpa`, a load outside the calibrated range
+//!    `min(Pmax, max_command_mpa) + overpressure_margin_mpa`, a load outside the calibrated range
 //!    of the coefficients by more than `load_margin_n` (within it, clamped
 //!    to the range), or a non-finite set-point is a [`Fault`];
 //! 3. feed pam-core's [`Tracker`] with the *desired* contraction as drive

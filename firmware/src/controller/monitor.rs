@@ -78,7 +78,8 @@ pub enum Fault {
     /// `supply_loss_rise_mpa`: no supply pressure (compressor off, hose
     /// off, regulator closed) or a supply too low for the command.
     SupplyLoss,
-    /// The chamber pressure is above `Pmax + overpressure_margin_mpa`.
+    /// The chamber pressure is above the highest command,
+    /// `min(Pmax, max_command_mpa)`, plus `overpressure_margin_mpa`.
     OverPressure,
     /// The readings disagree with the model or with the valve command.
     Implausible(Check),
@@ -109,7 +110,9 @@ impl core::fmt::Display for Fault {
             Fault::Setpoint => f.write_str("set-point not finite"),
             Fault::Valve => f.write_str("valve driver refused a duty"),
             Fault::SupplyLoss => f.write_str("inlet open but pressure not rising: supply lost"),
-            Fault::OverPressure => f.write_str("chamber pressure above Pmax + margin"),
+            Fault::OverPressure => {
+                f.write_str("chamber pressure above the highest command + margin")
+            }
             Fault::Implausible(Check::Model) => {
                 f.write_str("contraction disagrees with the model at the measured pressure")
             }

@@ -300,12 +300,15 @@ pub fn diagnose_with_progress(
     // loop closes (the cost falls all the way to an arbitrary bound, `Pmax`
     // standing in for the curve's shape, as on a Maxwell-slip rig whose
     // top reversal is the loop's tip). The diagnosis is made again with
-    // `Pmax` at the record's top.
+    // `Pmax` at the record's top. "At the ceiling" within
+    // `PMAX_NEAR_CEILING`: a three-iteration refit heading there may stop
+    // short of it.
     let pmax_record_top_mpa = setup.pmax_floor_mpa;
     let mut pmax_at_ceiling = false;
     if let Some(floor) = pmax_record_top_mpa {
         let ceiling = PMAX_CEILING_OF_TOP * floor;
-        let at_ceiling = |p: &pam_core::Params| p.points.max_pressure_mpa >= ceiling * (1.0 - 1e-3);
+        let at_ceiling =
+            |p: &pam_core::Params| p.points.max_pressure_mpa >= ceiling * (1.0 - PMAX_NEAR_CEILING);
         if at_ceiling(&outcome.base_params) || at_ceiling(&outcome.chosen.params) {
             progress("Pmax refitted went to its ceiling: again with Pmax at the record's top");
             setup.pmax_floor_mpa = None;
@@ -394,6 +397,10 @@ pub fn diagnose_with_progress(
         regimes: setup.regimes,
     })
 }
+
+/// Relative distance below the `Pmax` ceiling ([`PMAX_CEILING_OF_TOP`]
+/// times the record's top) that counts as having reached it.
+const PMAX_NEAR_CEILING: f32 = 0.02;
 
 /// The base refitted and the path chosen, for one way of treating `Pmax`
 /// ([`Setup::pmax_floor_mpa`]).

@@ -26,9 +26,9 @@ pub const BASE_REFIT_FIELDS: [&str; 11] = [
 ];
 
 /// Highest `Pmax` the refit may reach, as a multiple of the record's top
-/// pressure: the feedforward commands up to `Pmax` and the firmware's
-/// over-pressure guard sits above it, so a model may extrapolate the loop's
-/// closing point a little beyond what was measured, not far.
+/// pressure: a model may extrapolate its loop's closing point a little
+/// beyond what was measured, not far (the firmware commands no more than
+/// its hardware limit, `SafetyConfig::max_command_mpa`, whatever `Pmax`).
 pub const PMAX_CEILING_OF_TOP: f32 = 1.25;
 
 /// Index of `max_pressure_mpa` in [`BASE_REFIT_FIELDS`].
@@ -159,10 +159,11 @@ pub(super) fn refit_base(
         if held.iter().all(|&h| h) {
             return (p, c);
         }
-        let jtj = jac.transpose() * &jac;
-        let jtr = jac.transpose() * &r;
+        let mut jtj = jac.transpose() * &jac;
+        let mut jtr = jac.transpose() * &r;
         let mut improved = false;
-        'damping: for _ in 0..4 {
+        let mut tries = 0;
+        'damping: while tries < 4 {
             let mut a = jtj.clone();
             for k in 0..m {
                 a[(k, k)] += if held[k] {
@@ -173,8 +174,25 @@ pub(super) fn refit_base(
             }
             let Some(step) = a.lu().solve(&(-&jtr)) else {
                 lambda *= 10.0;
+                tries += 1;
                 continue;
             };
+            // `Pmax` on a bound whose step, solved together with the
+            // others', points outward (the gradient alone pointed inward):
+            // held, and the step solved again without it, so that the
+            // others do not count on a move the projection takes back.
+            if let Some((lo, hi)) = pmax_range {
+                let v = p.points.max_pressure_mpa;
+                let outward =
+                    (v <= lo && step[PMAX_FIELD] < 0.0) || (v >= hi && step[PMAX_FIELD] > 0.0);
+                if outward && !held[PMAX_FIELD] {
+                    held[PMAX_FIELD] = true;
+                    jac.column_mut(PMAX_FIELD).fill(0.0);
+                    jtj = jac.transpose() * &jac;
+                    jtr = jac.transpose() * &r;
+                    continue;
+                }
+            }
             // A step that leaves the valid parameters (the edge the fit
             // ended on) is shortened along its direction before the
             // damping grows.
@@ -195,6 +213,7 @@ pub(super) fn refit_base(
                 step *= 0.5;
             }
             lambda *= 10.0;
+            tries += 1;
         }
         if !improved {
             break;

@@ -79,9 +79,11 @@ pub struct DiagnoseReport {
     pub final_params: Params,
     /// The final model's effects.
     pub effects: Effects,
-    /// The record's top pressure, MPa, where `Pmax` started when it was
-    /// measured (the joint refit may raise it: a loop still open at the
-    /// record's top closes above it); `None` when `--pmax` gave it (held).
+    /// The record's top pressure, MPa (the training part's, through a
+    /// 9-sample average, as `fit` measures `Pmax`), where `Pmax` started
+    /// when it was measured (the joint refit may raise it: a loop still
+    /// open at the record's top closes above it); `None` when `--pmax` gave
+    /// it (held).
     pub pmax_record_top_mpa: Option<f64>,
     /// `Pmax` refitted went to its ceiling ([`super::PMAX_CEILING_OF_TOP`]
     /// times the record's top): the record does not say where the loop
