@@ -295,27 +295,35 @@ pub fn diagnose_with_progress(
         2 * PRESSURE_MEDIAN_HALF_WIDTH + 1,
     );
     let (paper_errors, _) = setup.errors(&setup.coeffs, Effects::NONE, 0);
-    let mut outcome = search(&setup, base_params, cfg, progress);
     // `Pmax` refitted up to its ceiling: the record does not say where the
     // loop closes (the cost falls all the way to an arbitrary bound, `Pmax`
     // standing in for the curve's shape, as on a Maxwell-slip rig whose
     // top reversal is the loop's tip). The diagnosis is made again with
-    // `Pmax` at the record's top. "At the ceiling" within
+    // `Pmax` at the record's top; when the base refit already ends there,
+    // before the search over effects. "At the ceiling" within
     // `PMAX_NEAR_CEILING`: a three-iteration refit heading there may stop
     // short of it.
     let pmax_record_top_mpa = setup.pmax_floor_mpa;
-    let mut pmax_at_ceiling = false;
-    if let Some(floor) = pmax_record_top_mpa {
-        let ceiling = PMAX_CEILING_OF_TOP * floor;
-        let at_ceiling =
-            |p: &pam_core::Params| p.points.max_pressure_mpa >= ceiling * (1.0 - PMAX_NEAR_CEILING);
-        if at_ceiling(&outcome.base_params) || at_ceiling(&outcome.chosen.params) {
+    let ceiling_mpa = pmax_record_top_mpa.map(|top| PMAX_CEILING_OF_TOP * top);
+    let at_ceiling = |p: &pam_core::Params| {
+        ceiling_mpa.is_some_and(|c| p.points.max_pressure_mpa >= c * (1.0 - PMAX_NEAR_CEILING))
+    };
+    let base = refit(&setup, base_params, cfg);
+    let first = if at_ceiling(&base.0) {
+        None
+    } else {
+        Some(search(&setup, base, cfg, progress)).filter(|o| !at_ceiling(&o.chosen.params))
+    };
+    let pmax_at_ceiling = first.is_none();
+    let outcome = match first {
+        Some(outcome) => outcome,
+        None => {
             progress("Pmax refitted went to its ceiling: again with Pmax at the record's top");
             setup.pmax_floor_mpa = None;
-            outcome = search(&setup, base_params, cfg, progress);
-            pmax_at_ceiling = true;
+            let base = refit(&setup, base_params, cfg);
+            search(&setup, base, cfg, progress)
         }
-    }
+    };
     let Outcome {
         base_params: refit_base_params,
         base_coeffs: refit_base_coeffs,
@@ -412,23 +420,30 @@ struct Outcome {
     paths: Vec<PathSummary>,
 }
 
-/// The base the effects are judged against (the paper's model refitted on
+/// The base the effects are judged against: the paper's model refitted on
 /// the simulated training record by the same joint refit every candidate
-/// gets, so that a candidate's gain is the effect's, not the refit's), and
-/// the search over effects from it.
-fn search(
+/// gets, so that a candidate's gain is the effect's, not the refit's.
+fn refit(
     setup: &Setup<'_>,
     base_params: pam_core::Params,
     cfg: &DiagnoseConfig,
-    progress: &dyn Fn(&str),
-) -> Outcome {
-    let (params, coeffs) = refit_base(
+) -> (pam_core::Params, Coeffs) {
+    refit_base(
         setup,
         base_params,
         setup.coeffs,
         Effects::NONE,
         cfg.refit_iterations,
-    );
+    )
+}
+
+/// The search over effects from the refitted base ([`refit`]).
+fn search(
+    setup: &Setup<'_>,
+    (params, coeffs): (pam_core::Params, Coeffs),
+    cfg: &DiagnoseConfig,
+    progress: &dyn Fn(&str),
+) -> Outcome {
     let (base_errors, _) = setup.errors(&coeffs, Effects::NONE, 0);
     let (chosen, paths) = paths::search(
         setup,
