@@ -161,6 +161,15 @@ pub struct SafetyConfig {
     pub latch_window_periods: u32,
 }
 
+impl SafetyConfig {
+    /// The highest pressure the loop commands for a model whose loop closes
+    /// at `pmax_mpa`: the lower of it and [`Self::max_command_mpa`]. The law
+    /// clamps its command to it; over-pressure is judged from it.
+    pub fn command_limit_mpa(&self, pmax_mpa: f32) -> f32 {
+        pmax_mpa.min(self.max_command_mpa)
+    }
+}
+
 /// Which feedforward the outer loop adds to its PI term.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -94,7 +94,7 @@ impl Law {
         };
         Ok(Law {
             integral_mpa: 0.0,
-            max_command_mpa: pmax_mpa.min(cfg.safety.max_command_mpa),
+            max_command_mpa: cfg.safety.command_limit_mpa(pmax_mpa),
             inverse,
             state: InverseState::default(),
         })

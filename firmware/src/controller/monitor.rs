@@ -350,7 +350,7 @@ impl Monitor {
                     Pressure,
                     s.pressure_min_mpa,
                     s.pressure_max_mpa,
-                    pmax.min(s.max_command_mpa) + s.overpressure_margin_mpa,
+                    s.command_limit_mpa(pmax) + s.overpressure_margin_mpa,
                     Fault::OverPressure,
                 ),
                 Rule::new(

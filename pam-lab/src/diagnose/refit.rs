@@ -81,6 +81,10 @@ pub(super) fn refit_base(
     let pmax_range = setup
         .pmax_floor_mpa
         .map(|floor| (floor, PMAX_CEILING_OF_TOP * floor));
+    // `Pmax` at `v` on a bound, moved in direction `d`, would leave its range.
+    let pmax_outward = |v: f32, d: f64| {
+        pmax_range.is_some_and(|(lo, hi)| (v <= lo && d < 0.0) || (v >= hi && d > 0.0))
+    };
     let with = |p: &Params, delta: &[f64]| -> Option<(Params, Coeffs)> {
         let mut q = *p;
         for (k, d) in delta.iter().enumerate() {
@@ -133,8 +137,14 @@ pub(super) fn refit_base(
                 -h
             })
             .collect();
+        // A column already held is zeroed below: not simulated.
+        let skip = held.clone();
         let mut jac =
             crate::lsq::forward_difference_jacobian(&vec![0.0; m], &h, r.len(), &|d, out| {
+                if d.iter().position(|v| *v != 0.0).is_some_and(|k| skip[k]) {
+                    out.fill(0.0);
+                    return;
+                }
                 match with(&p, d).and_then(|(_, c)| train(&c)) {
                     Some(v) => out.copy_from_slice(v.as_slice()),
                     None => out.fill(f64::NAN),
@@ -143,12 +153,8 @@ pub(super) fn refit_base(
         // `Pmax` on a bound whose cost falls further out is held there (the
         // bound is active): solved free, the other parameters' step would
         // count on a move of `Pmax` that the projection then takes back.
-        if let Some((lo, hi)) = pmax_range {
-            let v = p.points.max_pressure_mpa;
-            let descent = -jac.column(PMAX_FIELD).dot(&r);
-            if (v <= lo && descent < 0.0) || (v >= hi && descent > 0.0) {
-                held[PMAX_FIELD] = true;
-            }
+        if pmax_outward(p.points.max_pressure_mpa, -jac.column(PMAX_FIELD).dot(&r)) {
+            held[PMAX_FIELD] = true;
         }
         for (k, held) in held.iter_mut().enumerate() {
             if *held || jac.column(k).iter().any(|v| !v.is_finite()) {
@@ -181,17 +187,12 @@ pub(super) fn refit_base(
             // others', points outward (the gradient alone pointed inward):
             // held, and the step solved again without it, so that the
             // others do not count on a move the projection takes back.
-            if let Some((lo, hi)) = pmax_range {
-                let v = p.points.max_pressure_mpa;
-                let outward =
-                    (v <= lo && step[PMAX_FIELD] < 0.0) || (v >= hi && step[PMAX_FIELD] > 0.0);
-                if outward && !held[PMAX_FIELD] {
-                    held[PMAX_FIELD] = true;
-                    jac.column_mut(PMAX_FIELD).fill(0.0);
-                    jtj = jac.transpose() * &jac;
-                    jtr = jac.transpose() * &r;
-                    continue;
-                }
+            if !held[PMAX_FIELD] && pmax_outward(p.points.max_pressure_mpa, step[PMAX_FIELD]) {
+                held[PMAX_FIELD] = true;
+                jac.column_mut(PMAX_FIELD).fill(0.0);
+                jtj = jac.transpose() * &jac;
+                jtr = jac.transpose() * &r;
+                continue;
             }
             // A step that leaves the valid parameters (the edge the fit
             // ended on) is shortened along its direction before the
