@@ -776,7 +776,7 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
                     .iter()
                     .map(other)
                     .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
-                if hi - lo >= threshold {
+                if hi - lo >= threshold && !(name == "contraction" && held_length(&s[start..i])) {
                     return Err(err(
                         record.line(start),
                         Some(name),
@@ -794,6 +794,37 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
         }
     }
     Ok(())
+}
+
+/// Whether a stretch of constant contraction while the pressure moves is
+/// an isometric hold, not a stuck sensor: at a held length the muscle
+/// answers the pressure with force, so the load moves well above its noise
+/// (5×) and in step with the pressure (correlation at least 0.5). A stuck
+/// contraction sensor on an isotonic rig shows a hung load that does not
+/// follow the pressure.
+fn held_length(run: &[Sample]) -> bool {
+    let n = run.len() as f64;
+    if run.len() < 3 {
+        return false;
+    }
+    let load_noise = crate::split::noise_std(run.iter().map(|s| s.load_n));
+    let (lo, hi) = run.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
+        (a.min(s.load_n), b.max(s.load_n))
+    });
+    if !(hi - lo > 5.0 * load_noise && hi > lo) {
+        return false;
+    }
+    let (mp, ml) = run.iter().fold((0.0, 0.0), |(a, b), s| {
+        (a + s.pressure_mpa / n, b + s.load_n / n)
+    });
+    let (mut spl, mut spp, mut sll) = (0.0, 0.0, 0.0);
+    for s in run {
+        let (dp, dl) = (s.pressure_mpa - mp, s.load_n - ml);
+        spl += dp * dl;
+        spp += dp * dp;
+        sll += dl * dl;
+    }
+    spp > 0.0 && sll > 0.0 && spl / (spp * sll).sqrt() >= 0.5
 }
 
 /// The physical limits every sample must meet: `(column, value, allowed)` of

@@ -29,6 +29,7 @@ pub mod data;
 pub mod diagnose;
 pub mod diagnose_plot;
 pub mod fit;
+pub mod import;
 pub mod lsq;
 pub mod model_file;
 pub mod output;

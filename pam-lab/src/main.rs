@@ -99,6 +99,24 @@ impl FitOptions {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Turn a logger's files into pam's records: the mapping file says
+    /// which column holds what, in which unit, and which files (with the
+    /// length each was held at) make a record; writes NAME.csv per record.
+    Import {
+        /// Mapping file (TOML; examples/festo-10mm-isometric.toml is one).
+        mapping: PathBuf,
+        /// Directory the mapping's file paths are relative to.
+        #[arg(long, default_value = ".", value_name = "DIR")]
+        data_dir: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(short, long, default_value = "pam-lab-import", value_name = "DIR")]
+        out: PathBuf,
+        /// Only this record of the mapping (repeatable; default: all).
+        #[arg(long, value_name = "NAME")]
+        record: Vec<String>,
+        #[command(flatten)]
+        common: Common,
+    },
     /// Fit the paper's model to a record and write model.json, model.blob,
     /// model_params.rs and fit.png into the output directory.
     #[command(allow_negative_numbers = true)]
@@ -185,6 +203,13 @@ fn main() -> ExitCode {
         }
     };
     let result = match cli.command {
+        Command::Import {
+            mapping,
+            data_dir,
+            out,
+            record,
+            common,
+        } => run_import(&mapping, &data_dir, &out, &record, common),
         Command::Fit {
             data,
             out,
@@ -337,6 +362,52 @@ fn wrote(set_targets: &[PathBuf]) -> String {
         .iter()
         .map(|p| format!("wrote {}\n", p.display()))
         .collect()
+}
+
+fn run_import(
+    mapping: &Path,
+    data_dir: &Path,
+    out: &Path,
+    only: &[String],
+    common: Common,
+) -> Result<()> {
+    let map = pam_lab::import::read_mapping(mapping)?;
+    let mut set = OutputSet::new();
+    set.into_dir(out)?;
+    let names: Vec<String> = map
+        .records
+        .iter()
+        .filter(|r| only.is_empty() || only.contains(&r.name))
+        .map(|r| format!("{}.csv", r.name))
+        .collect();
+    set.check_in_dir(out, &names.iter().map(String::as_str).collect::<Vec<_>>())?;
+    let rep = Reporter::new(common);
+    rep.stage(&format!("reading the files of {}", mapping.display()));
+    let records = pam_lab::import::import(&map, data_dir, only)?;
+    let mut text = String::new();
+    for r in &records {
+        for w in &r.warnings {
+            warn(w);
+        }
+        set.add_bytes(&out.join(format!("{}.csv", r.name)), r.to_csv().as_bytes())?;
+        let (t0, t1) = (
+            r.samples.first().map_or(0.0, |s| s.t_s),
+            r.samples.last().map_or(0.0, |s| s.t_s),
+        );
+        text.push_str(&format!(
+            "{}: {} samples, {} segments, {:.1} s\n",
+            r.name,
+            r.samples.len(),
+            r.segments.len(),
+            t1 - t0
+        ));
+    }
+    let written = set.commit()?;
+    rep.done();
+    if !common.quiet {
+        print_out(&(text + &wrote(&written)))?;
+    }
+    Ok(())
 }
 
 fn run_fit(data: &Path, out: &Path, cfg: &FitConfig, draw: bool, common: Common) -> Result<()> {
