@@ -88,6 +88,8 @@ pub struct FitOutcome {
     pub files: Vec<(&'static str, Vec<u8>)>,
     /// Training samples used.
     pub training_samples: usize,
+    /// The model and its reference surface on the `--validate` record.
+    pub validation: Option<fit::Validation>,
 }
 
 /// `pam-lab fit`'s work: fit `record` (checked by [`read_record`]) with
@@ -98,12 +100,25 @@ pub fn fit_record(
     cfg: &FitConfig,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<FitOutcome, FitError> {
+    fit_and_validate(record, None, cfg, progress)
+}
+
+/// [`fit_record`], and the model and its reference surface evaluated on
+/// `validation`, a record of the same muscle neither was fitted to (its
+/// figures in the report and in `model.json`).
+pub fn fit_and_validate(
+    record: &Record,
+    validation: Option<&Record>,
+    cfg: &FitConfig,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<FitOutcome, FitError> {
     cfg.validate()?;
     let report = fit::fit_with_progress(record, cfg, progress)?;
     let training_samples = (0..record.len())
         .filter(|&i| report.split.branch.get(i).is_some_and(Option::is_some) && !report.heldout[i])
         .count();
     let any_heldout = report.heldout.iter().any(|h| *h);
+    let validated = validation.map(|v| fit::validate(&report, v, cfg));
     let summary = FitSummary {
         source: record.source.clone(),
         samples: record.len(),
@@ -113,6 +128,8 @@ pub fn fit_record(
         pressure_noise_mpa: report.split.pressure_noise_mpa,
         contraction_noise: report.split.contraction_noise,
         heldout_errors: any_heldout.then(|| report.test.clone()),
+        reference_heldout_rms_mpa: report.reference_test_rms_mpa,
+        validation: validated.clone(),
     };
     let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);
     let files = model_file::model_files(
@@ -129,6 +146,7 @@ pub fn fit_record(
         report,
         files,
         training_samples,
+        validation: validated,
     })
 }
 
@@ -234,6 +252,37 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
         },
         report.test_kind
     );
+    if let Some(r) = report.reference_test_rms_mpa {
+        let _ = writeln!(
+            out,
+            "  reference (a smooth static surface pressure(contraction, load), 30 coefficients, \
+             least squares on the same training samples): pressure RMS {r:.5} MPa; the model's is {:.2}x it",
+            report.test.total.pressure_rms_mpa / r
+        );
+    }
+    if let Some(v) = &outcome.validation {
+        let _ = writeln!(
+            out,
+            "validation on {} ({} samples; errors model − measured):",
+            v.source, v.model.total.samples
+        );
+        out.push_str(&v.model.to_text());
+        let _ = write!(
+            out,
+            "  validation pressure error RMS {:.5} MPa, contraction error RMS {:.6}",
+            v.model.total.pressure_rms_mpa, v.model.total.contraction_rms
+        );
+        match v.reference_rms_mpa {
+            Some(r) => {
+                let _ = writeln!(
+                    out,
+                    "; reference surface {r:.5} MPa (the model is {:.2}x it)",
+                    v.model.total.pressure_rms_mpa / r
+                );
+            }
+            None => out.push('\n'),
+        }
+    }
     out
 }
 

@@ -764,7 +764,27 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
             0.02,
         ),
     ];
+    // A record whose contraction is held at two or more exact values
+    // throughout (each for at least `min_run` samples) is an isometric protocol whose
+    // lengths were set, not measured (`pam-lab import` writes held lengths
+    // so): nothing there can be a stuck length sensor.
+    let held_protocol = {
+        let (mut runs_ok, mut runs) = (true, 0);
+        let mut start = 0;
+        for i in 1..=s.len() {
+            if i < s.len() && s[i].contraction == s[start].contraction {
+                continue;
+            }
+            runs_ok &= i - start >= min_run;
+            runs += 1;
+            start = i;
+        }
+        runs_ok && runs >= 2
+    };
     for (name, f, other, what, threshold) in channels {
+        if name == "contraction" && held_protocol {
+            continue;
+        }
         let mut start = 0;
         for i in 1..=s.len() {
             if i < s.len() && f(&s[i]) == f(&s[start]) {

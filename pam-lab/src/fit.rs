@@ -55,6 +55,7 @@ use pam_core::{Branch, Coeffs, LoadFamily, Params};
 use serde::Serialize;
 
 use crate::data::{DataError, DataErrorKind, Record, Sample};
+use crate::reference::ReferenceSurface;
 use crate::split::{split_branches, Split, SplitConfig};
 use crate::stats::{error_table, load_bin, ErrorTable};
 
@@ -382,6 +383,48 @@ pub struct FitReport {
     pub test_kind: TestKind,
     /// How well the cubic family follows the record's static curve.
     pub shape: ShapeFit,
+    /// The best smooth static surface on the same training samples
+    /// ([`ReferenceSurface`]), when there are enough of them.
+    pub reference: Option<ReferenceSurface>,
+    /// The reference's RMS pressure error on the samples of `test`, MPa.
+    pub reference_test_rms_mpa: Option<f64>,
+}
+
+/// A fitted model and its reference surface on a record neither was
+/// fitted to (`pam-lab fit --validate`).
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct Validation {
+    /// The record.
+    pub source: String,
+    /// The model's errors per load bin and branch.
+    pub model: ErrorTable,
+    /// The reference surface's RMS pressure error on the same samples, MPa.
+    pub reference_rms_mpa: Option<f64>,
+}
+
+/// Evaluate a fit on another record: its branches split as the fit split
+/// its own, slack samples of an isometric test left out as the fit leaves
+/// them out.
+pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validation {
+    let samples = &record.samples;
+    let split = split_branches(samples, &cfg.split);
+    let slack = slack_mask(samples, report.test_kind);
+    let include = |i: usize| split.branch[i].is_some() && !slack[i];
+    let model = error_table(
+        &report.coeffs,
+        samples,
+        &split.branch,
+        |i| !slack[i],
+        cfg.load_bin_n,
+    );
+    Validation {
+        source: record.source.clone(),
+        model,
+        reference_rms_mpa: report
+            .reference
+            .as_ref()
+            .map(|r| r.rms_mpa(samples, include).0),
+    }
 }
 
 // ---------------------------------------------------------------------------
@@ -722,6 +765,22 @@ pub fn detect_test(samples: &[Sample]) -> TestKind {
     }
 }
 
+/// The samples of an isometric test where the force is at the load cell's
+/// floor (5× its noise, at least 1 % of the record's largest load): a slack
+/// muscle held by the fixture, not a muscle in balance with 0 N. Such
+/// samples bound the model (pressure below the 0 N curve) but are no sample
+/// of it. None in other tests.
+pub fn slack_mask(samples: &[Sample], test: TestKind) -> Vec<bool> {
+    if test == TestKind::Isometric {
+        let max_load = samples.iter().map(|s| s.load_n).fold(0.0, f64::max);
+        let noise = crate::split::noise_std(samples.iter().map(|s| s.load_n));
+        let floor = (5.0 * noise).max(0.01 * max_load);
+        samples.iter().map(|s| s.load_n <= floor).collect()
+    } else {
+        vec![false; samples.len()]
+    }
+}
+
 /// Identify the model from `record`; `progress` hears about long work.
 pub fn fit_with_progress(
     record: &Record,
@@ -797,14 +856,7 @@ pub fn fit_with_progress(
     // muscle held by the fixture, not a muscle in balance with 0 N: such
     // samples bound the model (pressure below the 0 N curve) but are no
     // sample of it, and are left out of fit and errors.
-    let slack = if test == TestKind::Isometric {
-        let max_load = samples.iter().map(|s| s.load_n).fold(0.0, f64::max);
-        let noise = crate::split::noise_std(samples.iter().map(|s| s.load_n));
-        let floor = (5.0 * noise).max(0.01 * max_load);
-        samples.iter().map(|s| s.load_n <= floor).collect()
-    } else {
-        vec![false; samples.len()]
-    };
+    let slack = slack_mask(samples, test);
     let is_train = |i: usize| split.branch[i].is_some() && !heldout[i] && !slack[i];
 
     // Pmax: given, or the top of the smoothed pressure (the noise averaged out).
@@ -1051,9 +1103,17 @@ pub fn fit_with_progress(
     } else {
         train_table.clone()
     };
+    let labelled = |i: usize| split.branch[i].is_some() && !slack[i];
+    let reference = ReferenceSurface::fit(samples, |i| labelled(i) && !heldout[i]);
+    let reference_test_rms_mpa = reference.as_ref().map(|r| {
+        r.rms_mpa(samples, |i| labelled(i) && (heldout[i] || !any_heldout))
+            .0
+    });
     Ok(FitReport {
         params,
         coeffs,
+        reference,
+        reference_test_rms_mpa,
         heldout,
         train: train_table,
         test: test_table,

@@ -34,6 +34,7 @@ pub mod lsq;
 pub mod model_file;
 pub mod output;
 pub mod plot;
+pub mod reference;
 pub mod simulate;
 pub mod split;
 pub mod stats;

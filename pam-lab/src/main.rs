@@ -131,6 +131,10 @@ enum Command {
         /// Held-out part: `every:K` (every K-th cycle), `tail:F` (last fraction F) or `none`.
         #[arg(long, default_value = "every:4")]
         holdout: Holdout,
+        /// Also evaluate the model and the reference surface on this
+        /// record (another test of the same muscle, e.g. the held-out test).
+        #[arg(long, value_name = "DATA.csv")]
+        validate: Option<PathBuf>,
         /// Do not draw fit.png.
         #[arg(long)]
         no_plot: bool,
@@ -215,9 +219,17 @@ fn main() -> ExitCode {
             out,
             fit,
             holdout,
+            validate,
             no_plot,
             common,
-        } => run_fit(&data, &out, &fit.config(holdout), !no_plot, common),
+        } => run_fit(
+            &data,
+            validate.as_deref(),
+            &out,
+            &fit.config(holdout),
+            !no_plot,
+            common,
+        ),
         Command::Simulate {
             model,
             data,
@@ -410,7 +422,14 @@ fn run_import(
     Ok(())
 }
 
-fn run_fit(data: &Path, out: &Path, cfg: &FitConfig, draw: bool, common: Common) -> Result<()> {
+fn run_fit(
+    data: &Path,
+    validate: Option<&Path>,
+    out: &Path,
+    cfg: &FitConfig,
+    draw: bool,
+    common: Common,
+) -> Result<()> {
     // Options and the output directory before the record is read.
     cfg.validate()?;
     let mut set = OutputSet::new();
@@ -422,6 +441,13 @@ fn run_fit(data: &Path, out: &Path, cfg: &FitConfig, draw: bool, common: Common)
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Fit)?;
+    let validation = match validate {
+        Some(v) => {
+            rep.stage(&format!("reading {}", v.display()));
+            Some(commands::read_record(v, Purpose::Simulate)?)
+        }
+        None => None,
+    };
     rep.stage(&format!("{} samples", record.len()));
     let stage = std::sync::Mutex::new("");
     let progress = |p: Progress| match p {
@@ -436,7 +462,7 @@ fn run_fit(data: &Path, out: &Path, cfg: &FitConfig, draw: bool, common: Common)
             rep.detail(format!("{s}: evaluation {count}, cost {cost:.4e}"));
         }
     };
-    let outcome = commands::fit_record(&record, cfg, &progress)?;
+    let outcome = commands::fit_and_validate(&record, validation.as_ref(), cfg, &progress)?;
     if draw {
         rep.stage("plotting");
     }

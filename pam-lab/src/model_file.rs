@@ -39,6 +39,14 @@ pub struct FitSummary {
     pub contraction_noise: f64,
     /// Errors on the held-out samples, per load bin and branch.
     pub heldout_errors: Option<ErrorTable>,
+    /// The reference surface's RMS pressure error on the same held-out
+    /// samples (`pam_lab::reference`), MPa.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_heldout_rms_mpa: Option<f64>,
+    /// The model and the reference surface on a record neither was fitted
+    /// to (`--validate`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validation: Option<crate::fit::Validation>,
 }
 
 /// The JSON model file. `params` is pam-core's [`Params`], whose keys carry

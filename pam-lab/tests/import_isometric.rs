@@ -1,0 +1,166 @@
+//! A logger's isometric test, as the public Festo records are published
+//! (no header; force in N with its offset, pressure in kPa, time in s, a
+//! phase column; one file per held length and test; a logger clock that
+//! restarts inside a file), generated from a physical muscle (the
+//! Chou–Hannaford static law, a threshold pressure and braid friction: not
+//! pam-core's equations), through `pam-lab import` and `pam-lab fit
+//! --validate`.
+
+use std::path::Path;
+use std::process::Command;
+
+fn pam_lab(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_pam-lab"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Force, N, of a 10 mm McKibben muscle at `p_mpa` and contraction `eps`
+/// (Chou–Hannaford, braid angle 23°), less a threshold pressure and a
+/// friction force against the motion of the pressure (`filling`).
+fn force_n(p_mpa: f64, eps: f64, filling: bool) -> f64 {
+    let theta = 23f64.to_radians();
+    let (a, b) = (3.0 / theta.tan().powi(2), 1.0 / theta.sin().powi(2));
+    let area_m2 = std::f64::consts::PI * 0.01f64.powi(2) / 4.0;
+    let p_th = 0.04 + 1.2 * eps;
+    let ideal = (p_mpa - p_th).max(0.0) * 1e6 * area_m2 * (a * (1.0 - eps).powi(2) - b);
+    let friction = 6.0 + 0.06 * ideal;
+    (ideal - if filling { friction } else { -friction }).max(0.0)
+}
+
+/// One test at one held length: fill to 0.62 MPa, hold, vent to a floor;
+/// 1.8 ms samples. `reset_at`: the logger's clock restarts at that sample.
+fn write_test(path: &Path, eps: f64, seed: u64, reset_at: Option<usize>) {
+    let mut rng = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut noise = || {
+        rng = rng
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((rng >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    };
+    let mut text = String::new();
+    let n = 8000;
+    let mut t_clock = 0.0;
+    for i in 0..n {
+        let t = i as f64 * 0.0018;
+        let (p, filling) = if t < 7.0 {
+            (0.62 * (t / 7.0), true)
+        } else if t < 9.0 {
+            (0.62, true)
+        } else {
+            (0.07 + 0.55 * (-(t - 9.0) / 1.2).exp(), false)
+        };
+        let f = force_n(p, eps, filling);
+        // The load cell reads −4.6 N at no force, ±0.7 N of noise; the
+        // pressure sensor is quantised to 0.766 kPa.
+        let force = f - 4.6 + 1.4 * noise();
+        let kpa = ((p * 1000.0 + 0.8 * noise()) / 0.766).round() * 0.766;
+        if Some(i) == reset_at {
+            t_clock = 0.0;
+        }
+        text.push_str(&format!(
+            "{force:.4},{kpa:.3},{t_clock:.4},{}\n",
+            if filling { 1 } else { 2 }
+        ));
+        t_clock += 0.0018;
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+const HELD_CM: [f64; 4] = [8.3, 7.975, 7.65, 7.325];
+
+#[test]
+fn a_logger_isometric_test_is_imported_fitted_and_validated() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("logger");
+    std::fs::create_dir(&data).unwrap();
+    let mut map = String::from(
+        "header = false\n[columns]\nload = { column = 1, unit = \"N\" }\n\
+         pressure = { column = 2, unit = \"kPa\" }\ntime = { column = 3, unit = \"s\" }\n",
+    );
+    for (name, tests) in [("train", &[8u64, 9][..]), ("test", &[10][..])] {
+        map.push_str(&format!(
+            "[[record]]\nname = \"{name}\"\nrest_length = 8.3\nfiles = [\n"
+        ));
+        for (k, held) in HELD_CM.iter().enumerate() {
+            for &t in tests {
+                let file = format!("m_{k}_Test{t}.csv");
+                let eps = (8.3 - held) / 8.3;
+                let reset = (k == 1 && t == 9).then_some(4205);
+                write_test(&data.join(&file), eps, t * 10 + k as u64, reset);
+                map.push_str(&format!(
+                    "  {{ path = \"{file}\", held_length = {held} }},\n"
+                ));
+            }
+        }
+        map.push_str("]\n");
+    }
+    let map_path = dir.path().join("map.toml");
+    std::fs::write(&map_path, map).unwrap();
+    let out = dir.path().join("records");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "import",
+        map_path.to_str().unwrap(),
+        "--data-dir",
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}{stderr}");
+    // The reset is a new segment, said with its file and line.
+    assert!(
+        stderr.contains("m_1_Test9.csv:4206: the logger's clock restarts"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("load readings below 0 N"), "{stderr}");
+    assert!(
+        stdout.contains("train: 64000 samples, 9 segments"),
+        "{stdout}"
+    );
+    let train = std::fs::read_to_string(out.join("train.csv")).unwrap();
+    assert_eq!(train.matches("# segment").count(), 9);
+    // Time runs on across files and the reset.
+    let times: Vec<f64> = train
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(times.windows(2).all(|w| w[1] > w[0]));
+
+    // Held lengths are the protocol, not a stuck sensor; isometric detected.
+    let fit_dir = dir.path().join("fit");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "fit",
+        out.join("train.csv").to_str().unwrap(),
+        "--validate",
+        out.join("test.csv").to_str().unwrap(),
+        "--holdout",
+        "none",
+        "--no-plot",
+        "-o",
+        fit_dir.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}{stderr}");
+    assert!(stdout.contains("test: isometric (detected)"), "{stdout}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fit_dir.join("model.json")).unwrap())
+            .unwrap();
+    let v = &json["fit"]["validation"];
+    let model = v["model"]["total"]["pressure_rms_mpa"].as_f64().unwrap();
+    let reference = v["reference_rms_mpa"].as_f64().unwrap();
+    // The static surface follows this smooth muscle to within its friction
+    // (±6 N and 6 % of the force: about ±20 kPa of static loop); the model is
+    // reported beside it.
+    assert!(reference < 0.03, "{reference}");
+    eprintln!("validation pressure RMS: model {model:.4} MPa, reference {reference:.4} MPa");
+    assert!(model.is_finite() && model > 0.0, "{model}");
+    assert!(stdout.contains("reference surface"), "{stdout}");
+}
