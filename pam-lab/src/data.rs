@@ -1150,4 +1150,38 @@ mod tests {
         let e = check_record(&record(ramp, 60), Purpose::Diagnose).unwrap_err();
         assert!(matches!(e.kind, DataErrorKind::TooFewSamples(_)));
     }
+
+    #[test]
+    fn a_held_length_is_the_protocol_not_a_stuck_sensor() {
+        // Held at exact lengths throughout (an imported isometric test):
+        // the protocol, whatever the load does.
+        let held = record(
+            |i| Sample {
+                contraction: if i < 1500 { 0.0 } else { 0.04 },
+                ..ramp(i)
+            },
+            3000,
+        );
+        assert!(check_record(&held, Purpose::Fit).is_ok());
+        // One stretch held while the force follows the pressure: a hold.
+        let answered = |load: fn(&Sample) -> f64| {
+            record(
+                move |i| {
+                    let mut s = ramp(i);
+                    if (1000..2000).contains(&i) {
+                        s.contraction = 0.07;
+                        s.load_n = load(&s);
+                    }
+                    s
+                },
+                3000,
+            )
+        };
+        let force = answered(|s| 50.0 + 400.0 * s.pressure_mpa);
+        assert!(check_record(&force, Purpose::Fit).is_ok());
+        // A hung load that does not answer: a stuck sensor.
+        let hung = answered(|s| s.load_n);
+        let e = check_record(&hung, Purpose::Fit).unwrap_err();
+        assert!(matches!(e.kind, DataErrorKind::Stuck { .. }), "{e}");
+    }
 }

@@ -164,3 +164,45 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
     assert!(model.is_finite() && model > 0.0, "{model}");
     assert!(stdout.contains("reference surface"), "{stdout}");
 }
+
+#[test]
+fn import_refuses_bad_input_with_its_place_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = "header = false\n[columns]\nload = { column = 1, unit = \"N\" }\n\
+                pressure = { column = 2, unit = \"kPa\" }\ntime = { column = 3, unit = \"s\" }\n\
+                [[record]]\nname = \"r\"\nrest_length = 8.3\n\
+                files = [{ path = \"a.csv\", held_length = 8.3 }, { path = \"b.csv\", held_length = 8.0 }]\n";
+    std::fs::write(dir.path().join("a.csv"), "1,100,0\n2,200,0.01\n").unwrap();
+    std::fs::write(dir.path().join("b.csv"), "1,100,0\n2,2x0,0.01\n").unwrap();
+    let out = dir.path().join("out");
+    let cases = [
+        (
+            good.replace("\"kPa\"", "\"kpa\""),
+            "map.toml: columns.pressure: unit `kpa` is not known",
+        ),
+        (
+            good.replace("header = false", "header = false\nbogus = 1"),
+            "map.toml:2: column 1: unknown field `bogus`",
+        ),
+        (good.to_string(), "b.csv:2: column 2: `2x0` is not a number"),
+        (
+            good.replace("b.csv", "missing.csv"),
+            "missing.csv: cannot read",
+        ),
+    ];
+    for (map, want) in cases {
+        let map_path = dir.path().join("map.toml");
+        std::fs::write(&map_path, map).unwrap();
+        let (ok, stdout, stderr) = pam_lab(&[
+            "import",
+            map_path.to_str().unwrap(),
+            "--data-dir",
+            dir.path().to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!ok && stdout.is_empty(), "{stdout}{stderr}");
+        assert!(stderr.contains(want), "want `{want}`: {stderr}");
+        assert!(!out.exists(), "{want}: wrote {}", out.display());
+    }
+}

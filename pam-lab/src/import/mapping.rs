@@ -163,10 +163,18 @@ pub fn units_of(quantity: &str) -> &'static str {
 
 impl Mapping {
     /// Parse and check a mapping file's text; the error says what is wrong
-    /// and where (TOML's own line and column for syntax errors).
-    pub fn parse(text: &str) -> Result<Mapping, String> {
-        let m: Mapping = toml::from_str(text).map_err(|e| e.to_string().trim().to_string())?;
-        m.check()?;
+    /// and, for a TOML error, where: `(line, column)`, 1-based.
+    pub fn parse(text: &str) -> Result<Mapping, (Option<(u64, u64)>, String)> {
+        let m: Mapping = toml::from_str(text).map_err(|e| {
+            let at = e.span().map(|sp| {
+                let before = &text[..sp.start.min(text.len())];
+                let line = before.matches('\n').count() as u64 + 1;
+                let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) as u64 + 1;
+                (line, col)
+            });
+            (at, e.message().trim().to_string())
+        })?;
+        m.check().map_err(|why| (None, why))?;
         Ok(m)
     }
 
@@ -336,7 +344,7 @@ files = [{ path = "x.csv", held_length = 8.3 }]
                 "unknown field",
             ),
         ] {
-            let e = Mapping::parse(&OK.replacen(from, to, 1)).unwrap_err();
+            let (_, e) = Mapping::parse(&OK.replacen(from, to, 1)).unwrap_err();
             assert!(e.contains(want), "{from} → {to}: {e}");
         }
     }

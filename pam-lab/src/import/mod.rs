@@ -116,13 +116,14 @@ pub fn read_mapping(path: &Path) -> Result<Mapping, ImportError> {
         ));
     }
     let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
-    Mapping::parse(&text).map_err(|why| {
-        // TOML's messages start with their own "TOML parse error at line L, column C".
-        err(why
-            .replace('\n', " ")
-            .split_whitespace()
-            .collect::<Vec<_>>()
-            .join(" "))
+    Mapping::parse(&text).map_err(|(at, why)| match at {
+        Some((line, column)) => ImportError {
+            file: file.clone(),
+            line,
+            column: None,
+            why: format!("column {column}: {why}"),
+        },
+        None => err(why),
     })
 }
 
