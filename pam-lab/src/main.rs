@@ -206,6 +206,10 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    if let Err(e) = pam_lab::output::remove_staging_on_interrupt() {
+        let _ = writeln!(std::io::stderr(), "error: {e}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Import {
             mapping,
@@ -385,6 +389,12 @@ fn run_import(
 ) -> Result<()> {
     let map = pam_lab::import::read_mapping(mapping)?;
     let mut set = OutputSet::new();
+    set.protect(mapping);
+    for r in &map.records {
+        for f in &r.files {
+            set.protect(&data_dir.join(&f.path));
+        }
+    }
     set.into_dir(out)?;
     let names: Vec<String> = map
         .records
@@ -433,6 +443,10 @@ fn run_fit(
     // Options and the output directory before the record is read.
     cfg.validate()?;
     let mut set = OutputSet::new();
+    set.protect(data);
+    if let Some(v) = validate {
+        set.protect(v);
+    }
     set.into_dir(out)?;
     set.check_in_dir(
         out,
@@ -494,6 +508,8 @@ fn run_simulate(
     })?;
     let to_stdout = out == Path::new("-");
     let mut set = OutputSet::new();
+    set.protect(model);
+    set.protect(data);
     if !to_stdout {
         set.check_target(out)?;
     }
@@ -545,6 +561,7 @@ fn run_diagnose(
 ) -> Result<()> {
     cfg.fit.validate()?;
     let mut set = OutputSet::new();
+    set.protect(data);
     set.into_dir(out)?;
     set.check_in_dir(
         out,

@@ -52,6 +52,35 @@ fn out_err(path: &Path, action: &'static str, cause: impl fmt::Display) -> Outpu
     }
 }
 
+/// Staging directories alive in this process, for [`remove_staging_on_interrupt`].
+static STAGING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// On SIGINT or SIGTERM (Ctrl-C during a long `diagnose`), remove every
+/// staging directory of this process and exit with code 130: an interrupted
+/// command leaves nothing behind, as a failed one does. Call once, at start.
+pub fn remove_staging_on_interrupt() -> Result<(), OutputError> {
+    ctrlc::set_handler(|| {
+        if let Ok(dirs) = STAGING.lock() {
+            for d in dirs.iter() {
+                let _ = std::fs::remove_dir_all(d);
+            }
+        }
+        let _ = writeln!(std::io::stderr(), "interrupted: nothing written");
+        std::process::exit(130);
+    })
+    .map_err(|e| out_err(Path::new("."), "cannot watch for Ctrl-C", e))
+}
+
+fn register_staging(dir: &Path, alive: bool) {
+    if let Ok(mut dirs) = STAGING.lock() {
+        if alive {
+            dirs.push(dir.to_path_buf());
+        } else {
+            dirs.retain(|d| d != dir);
+        }
+    }
+}
+
 /// Where a target's staging directory goes: its parent, or `.`.
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
@@ -63,6 +92,9 @@ fn parent_dir(path: &Path) -> PathBuf {
 /// A set of output files staged for an all-or-nothing commit.
 #[derive(Debug)]
 pub struct OutputSet {
+    /// The command's input files ([`OutputSet::protect`]), as
+    /// `(path given, identity)`: no target may be one of them.
+    inputs: Vec<(PathBuf, FileId)>,
     /// Staging directories, one per target directory (usually one).
     stages: Vec<(PathBuf, tempfile::TempDir)>,
     /// `(staged file, target)` in the order added.
@@ -76,6 +108,7 @@ impl OutputSet {
     /// An empty set; nothing is created until a file is added.
     pub fn new() -> OutputSet {
         OutputSet {
+            inputs: Vec::new(),
             stages: Vec::new(),
             files: Vec::new(),
             dirs: Vec::new(),
@@ -135,6 +168,32 @@ impl OutputSet {
         self.stage_for(&dir.join("x")).map(|_| ())
     }
 
+    /// Never write over `input`: a target that is the same file (by path,
+    /// through symbolic links, or a hard link to it) is refused. Call with
+    /// every file the command reads, before its targets are checked.
+    pub fn protect(&mut self, input: &Path) {
+        if let Some(id) = file_id(input) {
+            self.inputs.push((input.to_path_buf(), id));
+        }
+    }
+
+    /// Whether `target` is one of the protected inputs.
+    fn check_not_input(&self, target: &Path) -> Result<(), OutputError> {
+        if let Some(id) = file_id(target) {
+            if let Some((input, _)) = self.inputs.iter().find(|(_, i)| *i == id) {
+                return Err(out_err(
+                    target,
+                    "cannot write",
+                    format!(
+                        "it is the input {} of this command (choose another output name)",
+                        input.display()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// [`OutputSet::check_target`] for each of `names` in `dir`, when `dir`
     /// exists already (a new one is empty).
     pub fn check_in_dir(&mut self, dir: &Path, names: &[&str]) -> Result<(), OutputError> {
@@ -149,6 +208,7 @@ impl OutputSet {
     /// Check now, before the work, that `target` can be written: not a
     /// directory, in an existing directory where files can be created.
     pub fn check_target(&mut self, target: &Path) -> Result<(), OutputError> {
+        self.check_not_input(target)?;
         if target.is_dir() {
             return Err(out_err(target, "cannot write", "is a directory"));
         }
@@ -188,6 +248,7 @@ impl OutputSet {
             .tempdir_in(&dir)
             .map_err(|e| out_err(&dir, "cannot create a staging directory in it", e))?;
         let p = t.path().to_path_buf();
+        register_staging(&p, true);
         self.stages.push((dir, t));
         Ok(p)
     }
@@ -200,6 +261,7 @@ impl OutputSet {
                 "named twice in one command",
             ));
         }
+        self.check_not_input(target)?;
         if target.is_dir() {
             return Err(out_err(target, "cannot write", "is a directory"));
         }
@@ -260,6 +322,7 @@ impl OutputSet {
     pub fn commit(mut self) -> Result<Vec<PathBuf>, OutputError> {
         // 1. Every target replaceable: not a directory, its directory writable.
         for (_, target) in &self.files {
+            self.check_not_input(target)?;
             if let Ok(m) = std::fs::symlink_metadata(target) {
                 if m.is_dir() {
                     return Err(out_err(target, "cannot replace", "is a directory"));
@@ -312,9 +375,45 @@ impl OutputSet {
     }
 }
 
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        // The staging directories themselves go with their `TempDir`s.
+        for (_, t) in &self.stages {
+            register_staging(t.path(), false);
+        }
+    }
+}
+
 impl Default for OutputSet {
     fn default() -> Self {
         OutputSet::new()
+    }
+}
+
+/// What makes two paths one file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum FileId {
+    /// Device and inode (links of every kind agree).
+    #[cfg(unix)]
+    Inode(u64, u64),
+    /// The canonical path, elsewhere.
+    #[cfg(not(unix))]
+    Canonical(PathBuf),
+}
+
+/// The identity of an existing file (following links); `None` when it
+/// does not exist.
+fn file_id(path: &Path) -> Option<FileId> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(path)
+            .ok()
+            .map(|m| FileId::Inode(m.dev(), m.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        std::fs::canonicalize(path).ok().map(FileId::Canonical)
     }
 }
 
