@@ -27,8 +27,42 @@ fn scenarios(seed: u64) -> Vec<Scenario> {
     ]
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let mut out = PathBuf::from("target/host-sim-report");
+fn main() -> std::process::ExitCode {
+    match run_main() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// The value after `option`, parsed; the error names the option, the text
+/// and what is expected.
+fn value<T: std::str::FromStr>(
+    args: &mut impl Iterator<Item = String>,
+    option: &str,
+    expected: &str,
+) -> Result<T, String> {
+    let text = args
+        .next()
+        .ok_or_else(|| format!("{option} needs {expected}"))?;
+    text.parse()
+        .map_err(|_| format!("{option} `{text}`: expected {expected}"))
+}
+
+/// The report's default folder: `host-sim-report` in the target directory
+/// this binary was built into (`target/` of the workspace under cargo),
+/// whatever the working directory.
+fn default_out() -> PathBuf {
+    std::env::current_exe()
+        .ok()
+        .and_then(|exe| Some(exe.parent()?.parent()?.join("host-sim-report")))
+        .unwrap_or_else(|| PathBuf::from("target/host-sim-report"))
+}
+
+fn run_main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut out = default_out();
     let mut seed = 1u64;
     let mut kp_mpa: Option<f32> = None;
     let mut ki_mpa_per_s: Option<f32> = None;
@@ -37,11 +71,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     while let Some(a) = args.next() {
         match a.as_str() {
             "--out" => out = PathBuf::from(args.next().ok_or("--out needs a folder")?),
-            "--seed" => seed = args.next().ok_or("--seed needs a number")?.parse()?,
-            "--kp" => kp_mpa = Some(args.next().ok_or("--kp needs a gain in MPa")?.parse()?),
-            "--ki" => {
-                ki_mpa_per_s = Some(args.next().ok_or("--ki needs a gain in MPa/s")?.parse()?)
-            }
+            "--seed" => seed = value(&mut args, "--seed", "a whole number >= 0")?,
+            "--kp" => kp_mpa = Some(value(&mut args, "--kp", "a gain in MPa")?),
+            "--ki" => ki_mpa_per_s = Some(value(&mut args, "--ki", "a gain in MPa/s")?),
             "--no-end-to-end" => end_to_end = false,
             "-h" | "--help" => {
                 println!("usage: host-sim [--out DIR] [--seed N] [--kp MPA] [--ki MPA_PER_S] [--no-end-to-end]");

@@ -157,6 +157,9 @@ pub enum DataErrorKind {
     NoSamples,
     /// Too few samples to identify the model; the text says which group.
     TooFewSamples(String),
+    /// A channel contradicts how a muscle behaves; the text says how, and
+    /// the likely fix.
+    Implausible(String),
     /// Every time stamp is the same.
     TimeNeverAdvances,
     /// A channel that must vary holds one value over the whole record.
@@ -285,6 +288,7 @@ impl fmt::Display for DataError {
                 write!(f, "value {} is out of range: {hint}", num(*value))
             }
             DataErrorKind::NoSamples => write!(f, "no samples after the header"),
+            DataErrorKind::Implausible(what) => write!(f, "{what}"),
             DataErrorKind::TooFewSamples(what) => {
                 write!(f, "too few samples to identify the model: {what}")
             }

@@ -781,6 +781,91 @@ pub fn slack_mask(samples: &[Sample], test: TestKind) -> Vec<bool> {
     }
 }
 
+/// Pearson correlation of two channels over a record (0 when one holds).
+fn correlation(samples: &[Sample], f: fn(&Sample) -> f64, g: fn(&Sample) -> f64) -> f64 {
+    let n = samples.len().max(1) as f64;
+    let (mf, mg) = samples
+        .iter()
+        .fold((0.0, 0.0), |(a, b), s| (a + f(s) / n, b + g(s) / n));
+    let (mut sfg, mut sff, mut sgg) = (0.0, 0.0, 0.0);
+    for s in samples {
+        let (df, dg) = (f(s) - mf, g(s) - mg);
+        sfg += df * dg;
+        sff += df * df;
+        sgg += dg * dg;
+    }
+    if sff > 0.0 && sgg > 0.0 {
+        sfg / (sff * sgg).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// Mistakes a record shows against the options, before any work: a
+/// `--test` the record contradicts, a `--pmax` below most of the samples,
+/// and (isotonic records) a contraction that falls as the pressure rises.
+fn check_against_record(
+    record: &Record,
+    cfg: &FitConfig,
+    detected: TestKind,
+) -> Result<(), FitError> {
+    let samples = &record.samples;
+    if let Some(given) = cfg.test {
+        let pure = |k| matches!(k, TestKind::Isotonic | TestKind::Isometric);
+        if pure(given) && pure(detected) && given != detected {
+            let (holds, moves) = match detected {
+                TestKind::Isotonic => ("load", "contraction"),
+                _ => ("contraction", "load"),
+            };
+            return Err(FitError::Config {
+                option: "--test",
+                why: format!(
+                    "`{given}`, but in {} the {holds} holds while the {moves} moves: it is \
+                     {detected} (leave --test out to detect it, or check the columns)",
+                    record.source
+                ),
+            });
+        }
+    }
+    if let Some(pmax) = cfg.max_pressure_mpa {
+        let above = samples.iter().filter(|s| s.pressure_mpa > pmax).count();
+        let top = samples
+            .iter()
+            .map(|s| s.pressure_mpa)
+            .fold(f64::MIN, f64::max);
+        if 2 * above > samples.len() {
+            return Err(FitError::Config {
+                option: "--pmax",
+                why: format!(
+                    "{pmax} MPa, but {:.0} % of the samples of {} lie above it (its top is {} \
+                     MPa): Pmax is where the loop closes, at the top of the record; leave \
+                     --pmax out to measure it",
+                    100.0 * above as f64 / samples.len() as f64,
+                    record.source,
+                    crate::data::num(top)
+                ),
+            });
+        }
+    }
+    let test = cfg.test.unwrap_or(detected);
+    if test == TestKind::Isotonic {
+        let r = correlation(samples, |s| s.pressure_mpa, |s| s.contraction);
+        if r < -0.5 {
+            return Err(FitError::Data(DataError {
+                file: record.source.clone(),
+                line: 0,
+                column: Some("contraction".into()),
+                kind: DataErrorKind::Implausible(format!(
+                    "falls as the pressure rises (correlation {r:.2} over the record): a muscle \
+                     shortens when pressurised, so contraction = (rest length − length)/rest \
+                     length rises with pressure; is its sign flipped?"
+                )),
+            }));
+        }
+    }
+    Ok(())
+}
+
 /// Identify the model from `record`; `progress` hears about long work.
 pub fn fit_with_progress(
     record: &Record,
@@ -847,7 +932,9 @@ pub fn fit_with_progress(
             ),
         ));
     }
-    let test = cfg.test.unwrap_or_else(|| detect_test(samples));
+    let detected = detect_test(samples);
+    let test = cfg.test.unwrap_or(detected);
+    check_against_record(record, cfg, detected)?;
 
     progress(Progress::Stage("splitting branches"));
     let split = split_branches(samples, &cfg.split);

@@ -506,6 +506,15 @@ fn run_simulate(
         };
         anyhow::anyhow!("invalid setting `{option}`: {e}")
     })?;
+    if let Some(p) = plot {
+        let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        if !png {
+            anyhow::bail!(
+                "invalid setting `--plot`: {}: the plot is drawn as PNG only (name it .png)",
+                p.display()
+            );
+        }
+    }
     let to_stdout = out == Path::new("-");
     let mut set = OutputSet::new();
     set.protect(model);

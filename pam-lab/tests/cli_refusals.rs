@@ -957,3 +957,59 @@ fn a_byte_order_mark_is_accepted() {
     assert!(dir.path().join("out/model.json").is_file());
     assert!(out.stdout.is_empty(), "quiet");
 }
+
+// ---- common mistakes the record contradicts ----
+
+#[test]
+fn fit_test_kind_the_record_contradicts() {
+    refused(
+        &[("bad.csv", csv(good_csv()))],
+        &["fit", "bad.csv", "-o", "out", "--test", "isometric"],
+        &[
+            "error: invalid setting `--test`: `isometric`, but in bad.csv the load holds while \
+             the contraction moves: it is isotonic",
+        ],
+    );
+}
+
+#[test]
+fn diagnose_pmax_below_most_samples() {
+    refused(
+        &[("bad.csv", csv(good_csv()))],
+        &["diagnose", "bad.csv", "-o", "diag", "--pmax", "0.05"],
+        &[
+            "invalid setting `--pmax`: 0.05 MPa, but",
+            "lie above it (its top is",
+        ],
+    );
+}
+
+#[test]
+fn fit_contraction_with_its_sign_flipped() {
+    fit_refuses(
+        csv(edited(|_, f| {
+            f[3] = format!("{}", -f[3].parse::<f64>().unwrap())
+        })),
+        &[
+            "error: bad.csv: column `contraction`: falls as the pressure rises",
+            "is its sign flipped?",
+        ],
+    );
+}
+
+#[test]
+fn simulate_plot_that_is_not_png() {
+    refused(
+        &[("rec.csv", csv(good_csv())), ("model.json", model_json())],
+        &[
+            "simulate",
+            "model.json",
+            "rec.csv",
+            "-o",
+            "sim.csv",
+            "--plot",
+            "x.svg",
+        ],
+        &["error: invalid setting `--plot`: x.svg: the plot is drawn as PNG only (name it .png)"],
+    );
+}
