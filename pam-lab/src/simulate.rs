@@ -63,44 +63,69 @@ pub struct Summary {
     pub pressure_max_mpa: f64,
 }
 
-/// Reversal points the simulation remembers (the non-local memory's
-/// depth), as diagnose evaluates a model with.
-pub const MEMORY_DEPTH: usize = crate::diagnose::MEMORY_DEPTH;
+/// Reversal points the simulation remembers: pam-core's one depth, the
+/// firmware's.
+pub use pam_core::effects::memory::MEMORY_DEPTH;
 
-/// Simulate `samples` with `coeffs` and `effects`; the tracker starts on
-/// the contraction branch at the first sample's load. Effects that do not
-/// validate give no samples (a loaded model file has been validated).
+/// The record simulator every tool uses: pam-core's [`Simulator`] driven
+/// by each sample's measured pressure and load, the tracker starting on
+/// the contraction branch at the first sample's load; on the tracker's own
+/// branch, or on `branches` when given (diagnose's hindsight branches).
+/// `each` gets the sample's index, the simulator after the step and the
+/// predicted contraction. Time runs from the record's first sample: the
+/// effects' filters integrate time steps in `f32`, which stays exact on a
+/// record whose clock starts late. `false` when the effects do not
+/// validate (nothing is simulated).
+pub fn run_record(
+    coeffs: &Coeffs,
+    effects: &Effects,
+    config: TrackerConfig,
+    samples: &[Sample],
+    branches: Option<&[Branch]>,
+    mut each: impl FnMut(usize, &Simulator<MEMORY_DEPTH>, f32),
+) -> bool {
+    let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
+    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load) else {
+        return false;
+    };
+    let t0 = samples.first().map_or(0.0, |s| s.t_s);
+    for (i, s) in samples.iter().enumerate() {
+        let (t, p, l) = ((s.t_s - t0) as f32, s.pressure_mpa as f32, s.load_n as f32);
+        let x = match branches.and_then(|b| b.get(i)) {
+            Some(&b) => sim.step_on_branch(t, p, l, b),
+            None => sim.step(t, p, l),
+        };
+        each(i, &sim, x);
+    }
+    true
+}
+
+/// Simulate `samples` with `coeffs` and `effects` ([`run_record`] on the
+/// tracker's branches). Effects that do not validate give no samples (a
+/// loaded model file has been validated).
 pub fn simulate(
     coeffs: &Coeffs,
     effects: &Effects,
     config: TrackerConfig,
     samples: &[Sample],
 ) -> Vec<SimSample> {
-    let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
-    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load) else {
-        return Vec::new();
-    };
-    // The effects' filters integrate time steps in f32: time from the
-    // record's start keeps them exact on records whose clock starts late.
-    let t0 = samples.first().map_or(0.0, |s| s.t_s);
-    samples
-        .iter()
-        .map(|s| {
-            let x = sim.step((s.t_s - t0) as f32, s.pressure_mpa as f32, s.load_n as f32);
-            let model = sim.tracker().model();
-            let p = model.pressure_mpa(s.contraction as f32, sim.branch());
-            SimSample {
-                t_s: s.t_s,
-                load_n: s.load_n,
-                pressure_mpa: s.pressure_mpa,
-                measured_contraction: s.contraction,
-                predicted_contraction: f64::from(x),
-                predicted_pressure_mpa: f64::from(p),
-                branch: sim.branch(),
-                active_load_n: f64::from(sim.tracker().load_n()),
-            }
-        })
-        .collect()
+    let mut out = Vec::with_capacity(samples.len());
+    run_record(coeffs, effects, config, samples, None, |i, sim, x| {
+        let s = &samples[i];
+        let model = sim.tracker().model();
+        let p = model.pressure_mpa(s.contraction as f32, sim.branch());
+        out.push(SimSample {
+            t_s: s.t_s,
+            load_n: s.load_n,
+            pressure_mpa: s.pressure_mpa,
+            measured_contraction: s.contraction,
+            predicted_contraction: f64::from(x),
+            predicted_pressure_mpa: f64::from(p),
+            branch: sim.branch(),
+            active_load_n: f64::from(sim.tracker().load_n()),
+        });
+    });
+    out
 }
 
 /// RMS and maximum |error| of a simulation, contraction and pressure.

@@ -23,9 +23,9 @@ use pam_core::feedforward::{InverseState, ModelInverse};
 use pam_core::{Branch, Error, LoadModel, Params};
 
 /// Reversal points the memory feedforward ([`Feedforward::HysteresisMemory`],
-/// or [`Feedforward::HysteresisEffects`] with memory) remembers (nested
-/// minor loops); older ones are dropped.
-pub const MEMORY_DEPTH: usize = 8;
+/// or [`Feedforward::HysteresisEffects`] with memory) remembers: pam-core's
+/// one depth, which the host tools simulate with too.
+pub use pam_core::effects::memory::MEMORY_DEPTH;
 
 /// Bisection steps of the minor-loop feedforward's inverse (pam-core's
 /// [`ReversalStack::inverse_pressure_mpa`](pam_core::effects::ReversalStack::inverse_pressure_mpa),

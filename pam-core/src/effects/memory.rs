@@ -72,6 +72,13 @@ use super::branch_contraction;
 /// resolution of an `f32` contraction near 0.1.
 pub const MEMORY_INVERSE_STEPS: usize = 24;
 
+/// Reversal points a model with memory remembers (nested minor loops);
+/// older ones are dropped. The one depth of the workspace: the firmware's
+/// feedforward runs it, and every host tool that simulates a model
+/// (pam-lab's `simulate` and `diagnose`) evaluates with it, so the model a
+/// diagnosis judges is the model the chip runs.
+pub const MEMORY_DEPTH: usize = 8;
+
 /// The pressure on `branch` at branch contraction `x` with the ellipse
 /// offset scaled by `offset_scale` (eqs. 25/26; 1: the paper's model), in
 /// `[0, Pmax]`: the forward counterpart of [`branch_contraction`] (the

@@ -1,10 +1,9 @@
 //! Simulating a model over the record and measuring its errors.
 
-use pam_core::{Branch, Coeffs, Effects, Simulator, TrackerConfig};
+use pam_core::{Branch, Coeffs, Effects, TrackerConfig};
 use serde::Serialize;
 
 use super::regimes::Regimes;
-use super::MEMORY_DEPTH;
 use crate::data::Sample;
 use crate::stats::rms_where;
 
@@ -18,17 +17,16 @@ pub fn simulate(
     samples: &[Sample],
     branches: &[Branch],
 ) -> Vec<f64> {
-    let first_load = samples.first().map_or(0.0, |s| s.load_n) as f32;
-    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, effects, tracker, first_load) else {
-        return vec![f64::NAN; samples.len()];
-    };
-    samples
-        .iter()
-        .zip(branches)
-        .map(|(s, &b)| {
-            f64::from(sim.step_on_branch(s.t_s as f32, s.pressure_mpa as f32, s.load_n as f32, b))
-        })
-        .collect()
+    let mut out = vec![f64::NAN; samples.len()];
+    crate::simulate::run_record(
+        coeffs,
+        &effects,
+        tracker,
+        samples,
+        Some(branches),
+        |i, _, x| out[i] = f64::from(x),
+    );
+    out
 }
 
 /// BIC of a model with training RMS `rms_train` over `n_train` samples

@@ -82,8 +82,9 @@ pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, Holdo
 use evaluate::Setup;
 use refit::refit_base;
 
-/// Capacity of the reversal memory the diagnosis simulates with.
-pub const MEMORY_DEPTH: usize = 16;
+/// Capacity of the reversal memory the diagnosis simulates with: pam-core's
+/// one depth, the firmware's.
+pub use pam_core::effects::memory::MEMORY_DEPTH;
 
 /// Settings of the diagnosis.
 #[derive(Clone, Debug)]
