@@ -64,7 +64,10 @@ fn no_command_writes_over_its_input() {
             target.display()
         );
     }
-    // The plot may not replace it either.
+    // The plot may not replace it either (here through a hard link named
+    // as a plot).
+    let as_png = dir.path().join("rec.png");
+    std::fs::hard_link(&rec, &as_png).unwrap();
     let (ok, _, stderr) = pam_lab(&[
         "simulate",
         model.to_str().unwrap(),
@@ -72,7 +75,7 @@ fn no_command_writes_over_its_input() {
         "-o",
         dir.path().join("sim.csv").to_str().unwrap(),
         "--plot",
-        rec.to_str().unwrap(),
+        as_png.to_str().unwrap(),
     ]);
     assert!(!ok && stderr.contains("it is the input"), "{stderr}");
     assert!(!dir.path().join("sim.csv").exists());
