@@ -42,6 +42,8 @@
 #[rustfmt::skip] // generated: long constant tables, kept as written
 pub mod identified;
 
+use pam_core::clamp;
+
 /// A measured load this far from the active load (N) switches the active
 /// load and re-interpolates the coefficients (pam-core's tracker threshold).
 pub const LOAD_THRESHOLD_N: f32 = 20.0;
@@ -67,21 +69,6 @@ fn grid_position(load_n: f32, min_load_n: f32, load_step_n: f32, l: usize) -> (u
 
 fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + (b - a) * t
-}
-
-/// `x` limited to `[lo, hi]` with comparisons only (no `fmaxf` call on
-/// FPv4), NaN → `lo`.
-#[inline(always)]
-fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
-    if x >= lo {
-        if x <= hi {
-            x
-        } else {
-            hi
-        }
-    } else {
-        lo
-    }
 }
 
 // ---------------------------------------------------------------------------

@@ -32,7 +32,7 @@ use crate::hal::{
     SensorErrorKind,
 };
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
-use pam_core::{Branch, Coeffs, Effects, LoadModel, Simulator, TrackerConfig};
+use pam_core::{clamp, Branch, Coeffs, Effects, LoadModel, Simulator, TrackerConfig};
 
 /// Physical constants of the simulated muscle and valves.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,18 +59,6 @@ impl PlantConfig {
         valve_dead_duty: 0.05,
         lag_s: 0.03,
     };
-}
-
-fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
-    if x >= lo {
-        if x <= hi {
-            x
-        } else {
-            hi
-        }
-    } else {
-        lo
-    }
 }
 
 /// The simulated muscle.

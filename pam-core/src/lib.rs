@@ -30,6 +30,7 @@ pub use error::Error;
 pub use feedforward::{InverseState, ModelInverse};
 pub use load_family::{LoadCubic, LoadFamily, ShapeMargins};
 pub use load_model::LoadModel;
+pub use math::clamp;
 pub use params::{CriticalPoints, Params, Point};
 pub use simulator::Simulator;
 pub use tracker::{LoadSwitch, Tracker, TrackerConfig, Update};

@@ -831,7 +831,7 @@ fn held_length(run: &[Sample]) -> bool {
     if run.len() < 3 {
         return false;
     }
-    let load_noise = crate::split::noise_std(run.iter().map(|s| s.load_n));
+    let load_noise = noise_std(run.iter().map(|s| s.load_n));
     let (lo, hi) = run.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
         (a.min(s.load_n), b.max(s.load_n))
     });
@@ -849,6 +849,23 @@ fn held_length(run: &[Sample]) -> bool {
         sll += dl * dl;
     }
     spp > 0.0 && sll > 0.0 && spl / (spp * sll).sqrt() >= 0.5
+}
+
+/// Robust standard deviation of white noise on a smooth signal, from the
+/// median absolute second difference: `var(x[i+1] − 2x[i] + x[i−1]) = 6σ²`,
+/// and `σ ≈ 1.4826 · MAD` for Gaussian noise.
+pub fn noise_std(values: impl Iterator<Item = f64> + Clone) -> f64 {
+    let v: Vec<f64> = values.collect();
+    if v.len() < 3 {
+        return 0.0;
+    }
+    let mut d2: Vec<f64> = v
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    let mid = d2.len() / 2;
+    let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *m / 6f64.sqrt()
 }
 
 /// The physical limits every sample must meet: `(column, value, allowed)` of

@@ -750,7 +750,7 @@ pub fn detect_test(samples: &[Sample]) -> TestKind {
         q(0.99) - q(0.01)
     };
     let lag = (samples.len() / 100).clamp(5, 1000);
-    let tol = |v: &[f64]| (0.01 * range(v)).max(3.0 * crate::split::noise_std(v.iter().copied()));
+    let tol = |v: &[f64]| (0.01 * range(v)).max(3.0 * crate::data::noise_std(v.iter().copied()));
     let (hx, hl) = (
         holding_share(&x, lag, tol(&x)),
         holding_share(&l, lag, tol(&l)),
@@ -773,7 +773,7 @@ pub fn detect_test(samples: &[Sample]) -> TestKind {
 pub fn slack_mask(samples: &[Sample], test: TestKind) -> Vec<bool> {
     if test == TestKind::Isometric {
         let max_load = samples.iter().map(|s| s.load_n).fold(0.0, f64::max);
-        let noise = crate::split::noise_std(samples.iter().map(|s| s.load_n));
+        let noise = crate::data::noise_std(samples.iter().map(|s| s.load_n));
         let floor = (5.0 * noise).max(0.01 * max_load);
         samples.iter().map(|s| s.load_n <= floor).collect()
     } else {
@@ -898,7 +898,7 @@ pub fn fit_with_progress(
     // Channels that must vary: time, pressure, contraction.
     let spread = |f: &dyn Fn(&Sample) -> f64| {
         let v: Vec<f64> = samples.iter().map(f).collect();
-        let noise = crate::split::noise_std(v.iter().copied());
+        let noise = crate::data::noise_std(v.iter().copied());
         let q = |p| quantile(v.clone(), p).unwrap_or(0.0);
         (q(0.99) - q(0.01), noise)
     };

@@ -24,7 +24,7 @@
 
 use pam_core::Branch;
 
-use crate::data::Sample;
+use crate::data::{noise_std, Sample};
 
 /// Tuning of the split; `None` fields are derived from the data.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,23 +75,6 @@ impl Split {
     pub fn cycles(&self) -> u32 {
         self.cycle.last().map_or(0, |c| c + 1)
     }
-}
-
-/// Robust standard deviation of white noise on a smooth signal, from the
-/// median absolute second difference: `var(x[i+1] − 2x[i] + x[i−1]) = 6σ²`,
-/// and `σ ≈ 1.4826 · MAD` for Gaussian noise.
-pub fn noise_std(values: impl Iterator<Item = f64> + Clone) -> f64 {
-    let v: Vec<f64> = values.collect();
-    if v.len() < 3 {
-        return 0.0;
-    }
-    let mut d2: Vec<f64> = v
-        .windows(3)
-        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
-        .collect();
-    let mid = d2.len() / 2;
-    let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
-    1.4826 * *m / 6f64.sqrt()
 }
 
 /// Centred moving average of width `w` (odd), shrinking at the ends.

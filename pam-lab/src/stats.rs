@@ -317,8 +317,8 @@ pub struct NoiseFloor {
 pub fn noise_floor(samples: &[Sample]) -> NoiseFloor {
     let n = samples.len();
     let whole = || NoiseFloor {
-        contraction: crate::split::noise_std(samples.iter().map(|s| s.contraction)),
-        pressure_mpa: crate::split::noise_std(samples.iter().map(|s| s.pressure_mpa)),
+        contraction: crate::data::noise_std(samples.iter().map(|s| s.contraction)),
+        pressure_mpa: crate::data::noise_std(samples.iter().map(|s| s.pressure_mpa)),
         samples: n,
     };
     if n < 40 {

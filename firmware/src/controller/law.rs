@@ -20,7 +20,7 @@ use super::config::{ControllerConfig, Feedforward};
 use super::monitor::ModelBand;
 use pam_core::effects::Effects;
 use pam_core::feedforward::{InverseState, ModelInverse};
-use pam_core::{Branch, Error, LoadModel, Params};
+use pam_core::{clamp, Branch, Error, LoadModel, Params};
 
 /// Reversal points the memory feedforward ([`Feedforward::HysteresisMemory`],
 /// or [`Feedforward::HysteresisEffects`] with memory) remembers: pam-core's
@@ -42,20 +42,6 @@ pub(super) fn inverted_effects(feedforward: &Feedforward) -> Option<Effects> {
         }),
         Feedforward::HysteresisEffects(e) => Some(*e),
         Feedforward::Hysteresis | Feedforward::Constraint | Feedforward::Off => None,
-    }
-}
-
-/// `x` limited to `[lo, hi]`, NaN → `lo` (never panics, unlike `f32::clamp`
-/// with bad bounds).
-pub(crate) fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
-    if x >= lo {
-        if x <= hi {
-            x
-        } else {
-            hi
-        }
-    } else {
-        lo
     }
 }
 

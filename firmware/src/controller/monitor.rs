@@ -142,10 +142,10 @@ impl Rule {
         // Each bound limited to the finite floats, so an infinite reading is
         // never inside.
         let (lo, hi) = (
-            super::law::clamp(lo, f32::MIN, f32::MAX),
-            super::law::clamp(hi, f32::MIN, f32::MAX),
+            pam_core::clamp(lo, f32::MIN, f32::MAX),
+            pam_core::clamp(hi, f32::MIN, f32::MAX),
         );
-        let limit = super::law::clamp(limit, f32::MIN, hi);
+        let limit = pam_core::clamp(limit, f32::MIN, hi);
         Rule {
             sensor,
             lo,

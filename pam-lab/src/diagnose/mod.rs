@@ -77,7 +77,7 @@ pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use paths::{PathSummary, PATHS_MAX};
 pub use refit::{BASE_REFIT_FIELDS, PMAX_CEILING_OF_TOP};
 pub use regimes::{hindsight_branches, pressure_regimes, regimes, Regimes};
-pub use report::{summary, write_outputs, CandidateSummary, DiagnoseReport, HoldoutCover, Round};
+pub use report::{summary, CandidateSummary, DiagnoseReport, HoldoutCover, Round};
 
 use evaluate::Setup;
 use refit::refit_base;
@@ -263,8 +263,8 @@ pub fn diagnose_with_progress(
         fit.coeffs
     };
     let tracker = tracker_config(
-        crate::split::noise_std(record.samples.iter().map(|s| s.pressure_mpa)),
-        crate::split::noise_std(record.samples.iter().map(|s| s.load_n)),
+        crate::data::noise_std(record.samples.iter().map(|s| s.pressure_mpa)),
+        crate::data::noise_std(record.samples.iter().map(|s| s.load_n)),
     );
     let train_idx: Vec<usize> = (0..samples.len()).filter(|&i| !heldout[i]).collect();
     let regimes = regimes(samples, &coeffs, tracker);

@@ -1,15 +1,12 @@
 //! The diagnosis' report: its structure, the summary on stdout and the one
 //! function that writes files.
 
-use std::path::Path;
-
 use pam_core::{Effects, Params};
 use serde::Serialize;
 
 use super::candidates::CandidateResult;
 use super::evaluate::ModelErrors;
 use super::regimes::Regimes;
-use crate::data::Record;
 
 /// One round of candidate selection.
 #[derive(Clone, Debug, Serialize)]
@@ -259,15 +256,4 @@ pub fn summary(r: &DiagnoseReport) -> String {
         s.push_str(&format!("warning: {w}\n"));
     }
     s
-}
-
-/// Write every output of the diagnosis into `dir`: `report.json`, the
-/// model it ends with (`model.json`, `model.blob`, `model_params.rs`, as
-/// `fit` writes them, effects included) and `residual.png`, `loops.png`, all or none ([`crate::output::OutputSet`],
-/// staged by [`crate::commands::stage_diagnose`]); an error names the path.
-pub fn write_outputs(r: &DiagnoseReport, record: &Record, dir: &Path) -> anyhow::Result<()> {
-    let mut set = crate::output::OutputSet::new();
-    crate::commands::stage_diagnose(&mut set, dir, r, record, true)?;
-    set.commit()?;
-    Ok(())
 }
