@@ -7,17 +7,9 @@ use std::process::Command;
 use pam_core::Params;
 use pam_lab::synth::{generate, Protocol};
 
-fn pam_lab(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_pam-lab"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+#[path = "support/cli.rs"]
+mod cli_support;
+use cli_support::pam_lab;
 
 fn write_record(path: &Path, loads: &[f64]) {
     let rec = generate(&Params::DEFAULT, &Protocol::quick(loads), 0.001, 0.0008, 5);

@@ -7,19 +7,10 @@
 //! --validate`.
 
 use std::path::Path;
-use std::process::Command;
 
-fn pam_lab(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_pam-lab"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+#[path = "support/cli.rs"]
+mod cli_support;
+use cli_support::pam_lab;
 
 /// Force, N, of a 10 mm McKibben muscle at `p_mpa` and contraction `eps`
 /// (Chou–Hannaford, braid angle 23°), less a threshold pressure and a
