@@ -166,7 +166,16 @@ pub fn stage_fit(
     if draw {
         let r = &outcome.report;
         set.add_via_path(&dir.join("fit.png"), |p| {
-            crate::plot::fit_plot(p, record, &r.split, &r.heldout, &r.coeffs, cfg.load_bin_n)
+            let slack = fit::slack_mask(&record.samples, r.test_kind);
+            crate::plot::fit_plot(
+                p,
+                record,
+                &r.split,
+                &r.heldout,
+                &slack,
+                &r.coeffs,
+                cfg.load_bin_n,
+            )
         })?;
     }
     Ok(())

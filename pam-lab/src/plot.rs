@@ -61,13 +61,17 @@ pub fn fit_plot(
     record: &Record,
     split: &Split,
     heldout: &[bool],
+    slack: &[bool],
     coeffs: &Coeffs,
     load_bin_n: f64,
 ) -> Result<()> {
     let samples = &record.samples;
+    // A slack muscle's samples (an isometric test's force at the load
+    // cell's floor, `fit::slack_mask`) are no samples of the model: not drawn.
+    let drawn = |i: usize| split.branch[i].is_some() && !slack.get(i).copied().unwrap_or(false);
     let mut counts: BTreeMap<i64, usize> = BTreeMap::new();
     for (i, s) in samples.iter().enumerate() {
-        if split.branch[i].is_some() {
+        if drawn(i) {
             *counts
                 .entry((s.load_n / load_bin_n).round() as i64)
                 .or_default() += 1;
@@ -124,7 +128,7 @@ pub fn fit_plot(
                     .enumerate()
                     .step_by(thin)
                     .filter(move |(i, s)| {
-                        split.branch[*i].is_some()
+                        drawn(*i)
                             && heldout[*i] == held
                             && (s.load_n / load_bin_n).round() as i64 == *key
                     })
