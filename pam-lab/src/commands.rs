@@ -128,7 +128,7 @@ pub fn fit_and_validate(
         pressure_noise_mpa: report.split.pressure_noise_mpa,
         contraction_noise: report.split.contraction_noise,
         heldout_errors: any_heldout.then(|| report.test.clone()),
-        reference_heldout_rms_mpa: report.reference_test_rms_mpa,
+        reference_heldout_rms_mpa: report.reference_test_rms_mpa.filter(|_| any_heldout),
         validation: validated.clone(),
     };
     let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);

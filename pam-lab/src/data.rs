@@ -769,7 +769,7 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
         ),
     ];
     // A record whose contraction is held at two or more exact values
-    // throughout (each for at least `min_run` samples) is an isometric protocol whose
+    // throughout (each for at least 200 samples) is an isometric protocol whose
     // lengths were set, not measured (`pam-lab import` writes held lengths
     // so): nothing there can be a stuck length sensor.
     let held_protocol = {
@@ -779,7 +779,7 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
             if i < s.len() && s[i].contraction == s[start].contraction {
                 continue;
             }
-            runs_ok &= i - start >= min_run;
+            runs_ok &= i - start >= 200;
             runs += 1;
             start = i;
         }

@@ -423,7 +423,8 @@ pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validat
         reference_rms_mpa: report
             .reference
             .as_ref()
-            .map(|r| r.rms_mpa(samples, include).0),
+            .and_then(|r| r.rms_mpa(samples, include))
+            .map(|(rms, _)| rms),
     }
 }
 
@@ -1192,10 +1193,10 @@ pub fn fit_with_progress(
     };
     let labelled = |i: usize| split.branch[i].is_some() && !slack[i];
     let reference = ReferenceSurface::fit(samples, |i| labelled(i) && !heldout[i]);
-    let reference_test_rms_mpa = reference.as_ref().map(|r| {
-        r.rms_mpa(samples, |i| labelled(i) && (heldout[i] || !any_heldout))
-            .0
-    });
+    let reference_test_rms_mpa = reference
+        .as_ref()
+        .and_then(|r| r.rms_mpa(samples, |i| labelled(i) && (heldout[i] || !any_heldout)))
+        .map(|(rms, _)| rms);
     Ok(FitReport {
         params,
         coeffs,

@@ -54,18 +54,31 @@ fn out_err(path: &Path, action: &'static str, cause: impl fmt::Display) -> Outpu
 
 /// Staging directories alive in this process, for [`remove_staging_on_interrupt`].
 static STAGING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+/// Held by [`OutputSet::commit`] while it moves files into place: an
+/// interrupt waits for it, so a set is never left half moved (and its
+/// backups, in the staging directory, are not removed under it).
+static COMMITTING: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// Whether a set of this process was committed (the interrupt's message).
+static COMMITTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 /// On SIGINT or SIGTERM (Ctrl-C during a long `diagnose`), remove every
 /// staging directory of this process and exit with code 130: an interrupted
 /// command leaves nothing behind, as a failed one does. Call once, at start.
 pub fn remove_staging_on_interrupt() -> Result<(), OutputError> {
     ctrlc::set_handler(|| {
+        // A commit under way finishes (or rolls back) first.
+        let _commit = COMMITTING.lock();
         if let Ok(dirs) = STAGING.lock() {
             for d in dirs.iter() {
                 let _ = std::fs::remove_dir_all(d);
             }
         }
-        let _ = writeln!(std::io::stderr(), "interrupted: nothing written");
+        let what = if COMMITTED.load(std::sync::atomic::Ordering::SeqCst) {
+            "interrupted after the outputs were written"
+        } else {
+            "interrupted: nothing written"
+        };
+        let _ = writeln!(std::io::stderr(), "{what}");
         std::process::exit(130);
     })
     .map_err(|e| out_err(Path::new("."), "cannot watch for Ctrl-C", e))
@@ -329,6 +342,8 @@ impl OutputSet {
                 }
             }
         }
+        // An interrupt waits until every file is in place or put back.
+        let _committing = COMMITTING.lock();
         // 2. Directories.
         let mut made_dirs = Vec::new();
         for d in &self.dirs {
@@ -371,15 +386,20 @@ impl OutputSet {
         }
         let targets = self.targets();
         self.files.clear();
+        COMMITTED.store(true, std::sync::atomic::Ordering::SeqCst);
         Ok(targets)
     }
 }
 
 impl Drop for OutputSet {
     fn drop(&mut self) {
-        // The staging directories themselves go with their `TempDir`s.
-        for (_, t) in &self.stages {
-            register_staging(t.path(), false);
+        // Each staging directory is removed with its `TempDir`, then
+        // forgotten by the interrupt handler (not before: an interrupt in
+        // between still removes it).
+        for (_, t) in std::mem::take(&mut self.stages) {
+            let path = t.path().to_path_buf();
+            drop(t);
+            register_staging(&path, false);
         }
     }
 }

@@ -99,35 +99,49 @@ impl ReferenceSurface {
         };
         let xr = range(|s| s.contraction);
         let lr = range(|s| s.load_n);
-        let mut a = DMatrix::<f64>::zeros(used.len(), NX * NL);
-        let mut b = DVector::<f64>::zeros(used.len());
+        // Normal equations, accumulated row by row (memory independent of
+        // the record's length), solved by SVD: the scaled Chebyshev basis
+        // keeps them well conditioned, and a record with fewer distinct
+        // contractions or loads than the degree gets the minimum-norm
+        // solution.
+        let m = NX * NL;
+        let mut ata = DMatrix::<f64>::zeros(m, m);
+        let mut atb = DVector::<f64>::zeros(m);
         let mut r = [0.0; NX * NL];
-        for (k, s) in used.iter().enumerate() {
+        for s in &used {
             row(xr, lr, s.contraction, s.load_n, &mut r);
-            for (j, v) in r.iter().enumerate() {
-                a[(k, j)] = *v;
+            for j in 0..m {
+                atb[j] += r[j] * s.pressure_mpa;
+                for k in 0..m {
+                    ata[(j, k)] += r[j] * r[k];
+                }
             }
-            b[k] = s.pressure_mpa;
         }
-        // Normal equations are too ill-conditioned for degree 9 in total;
-        // the SVD of the (n × 30) matrix is cheap.
-        let svd = a.clone().svd(true, true);
-        let tol = svd.singular_values.max() * 1e-10;
-        let c = svd.solve(&b, tol).ok()?;
-        let resid = &a * &c - &b;
-        let rms = (resid.norm_squared() / used.len() as f64).sqrt();
-        Some(ReferenceSurface {
+        let svd = ata.svd(true, true);
+        let tol = svd.singular_values.max() * 1e-12;
+        let c = svd.solve(&atb, tol).ok()?;
+        let mut surface = ReferenceSurface {
             contraction_range: xr,
             load_range_n: lr,
             coefficients_mpa: c.iter().copied().collect(),
             training_samples: used.len(),
-            training_rms_mpa: rms,
-        })
+            training_rms_mpa: 0.0,
+        };
+        let sq: f64 = used
+            .iter()
+            .map(|s| (surface.pressure_mpa(s.contraction, s.load_n) - s.pressure_mpa).powi(2))
+            .sum();
+        surface.training_rms_mpa = (sq / used.len() as f64).sqrt();
+        Some(surface)
     }
 
     /// RMS pressure error (surface − measured) on the samples `include`
-    /// selects, and their number.
-    pub fn rms_mpa(&self, samples: &[Sample], include: impl Fn(usize) -> bool) -> (f64, usize) {
+    /// selects, and their number; `None` when it selects none.
+    pub fn rms_mpa(
+        &self,
+        samples: &[Sample],
+        include: impl Fn(usize) -> bool,
+    ) -> Option<(f64, usize)> {
         let (mut sum, mut n) = (0.0, 0usize);
         for (i, s) in samples.iter().enumerate() {
             if include(i) {
@@ -135,7 +149,7 @@ impl ReferenceSurface {
                 n += 1;
             }
         }
-        ((sum / n.max(1) as f64).sqrt(), n)
+        (n > 0).then(|| ((sum / n as f64).sqrt(), n))
     }
 }
 
@@ -171,7 +185,10 @@ mod tests {
             .collect();
         let s = ReferenceSurface::fit(&samples, |i| (i / 10) % 2 == 0).unwrap();
         assert!(s.training_rms_mpa < 1e-9, "{}", s.training_rms_mpa);
-        let (rms, n) = s.rms_mpa(&samples, |i| (i / 10) % 2 == 1 && i < 1990);
+        let (rms, n) = s
+            .rms_mpa(&samples, |i| (i / 10) % 2 == 1 && i < 1990)
+            .unwrap();
+        assert!(s.rms_mpa(&samples, |_| false).is_none());
         assert_eq!(n, 990);
         assert!(rms < 1e-9, "{rms}");
         // Beyond the training range the surface holds its edge.

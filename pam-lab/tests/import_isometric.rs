@@ -165,6 +165,11 @@ fn import_refuses_bad_input_with_its_place_and_writes_nothing() {
                 files = [{ path = \"a.csv\", held_length = 8.3 }, { path = \"b.csv\", held_length = 8.0 }]\n";
     std::fs::write(dir.path().join("a.csv"), "1,100,0\n2,200,0.01\n").unwrap();
     std::fs::write(dir.path().join("b.csv"), "1,100,0\n2,2x0,0.01\n").unwrap();
+    std::fs::write(
+        dir.path().join("neg.csv"),
+        "-1,100,0\n-2,200,0.01\n-3,300,0.02\n",
+    )
+    .unwrap();
     let out = dir.path().join("out");
     let cases = [
         (
@@ -179,6 +184,11 @@ fn import_refuses_bad_input_with_its_place_and_writes_nothing() {
         (
             good.replace("b.csv", "missing.csv"),
             "missing.csv: cannot read",
+        ),
+        (
+            good.replace("\"a.csv\"", "\"neg.csv\"")
+                .replace("\"b.csv\"", "\"a.csv\""),
+            "is the load cell's sign reversed? set `scale = -1`",
         ),
     ];
     for (map, want) in cases {

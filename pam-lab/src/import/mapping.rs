@@ -34,8 +34,8 @@ use serde::Deserialize;
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Mapping {
-    /// Whether the files' first line names the columns (default true).
-    #[serde(default = "yes")]
+    /// Whether the files' first line names the columns (required: a
+    /// guess would drop a sample or read a header as data).
     pub header: bool,
     /// Field separator, one character (default `,`).
     #[serde(default = "comma")]
@@ -50,9 +50,6 @@ pub struct Mapping {
     pub records: Vec<RecordSpec>,
 }
 
-fn yes() -> bool {
-    true
-}
 fn comma() -> char {
     ','
 }
@@ -179,6 +176,15 @@ impl Mapping {
     }
 
     fn check(&self) -> Result<(), String> {
+        let d = self.delimiter;
+        let usable = d == '\t' || (d.is_ascii() && !d.is_ascii_control() && !"\"#".contains(d));
+        if !usable {
+            return Err(format!(
+                "delimiter `{}`: must be one ASCII character other than `\"` and `#` (a comma, \
+                 a semicolon, a tab…)",
+                d.escape_default()
+            ));
+        }
         if unit_factor("length", &self.length_unit).is_none() {
             return Err(format!(
                 "length_unit `{}`: expected one of {}",
@@ -343,6 +349,12 @@ files = [{ path = "x.csv", held_length = 8.3 }]
                 "header = false\nbogus = 1",
                 "unknown field",
             ),
+            (
+                "header = false",
+                "header = false\ndelimiter = \"#\"",
+                "delimiter `#`",
+            ),
+            ("header = false", "", "missing field `header`"),
         ] {
             let (_, e) = Mapping::parse(&OK.replacen(from, to, 1)).unwrap_err();
             assert!(e.contains(want), "{from} → {to}: {e}");

@@ -222,7 +222,7 @@ fn import_record(
         segments: Vec::new(),
         warnings: Vec::new(),
     };
-    let mut negative_loads = 0usize;
+    let (mut negative_loads, mut positive_loads) = (0usize, 0usize);
     let mut most_negative = 0.0f64;
     let mut first_negative = String::new();
     for f in &spec.files {
@@ -261,7 +261,10 @@ fn import_record(
             Some(
                 reader
                     .headers()
-                    .map_err(|e| err(1, None, format!("cannot read the header: {e}")))?
+                    .map_err(|e| {
+                        let line = e.position().map_or(1, |p| p.line());
+                        err(line, None, format!("cannot read the header: {e}"))
+                    })?
                     .clone(),
             )
         } else {
@@ -296,7 +299,9 @@ fn import_record(
             }
         };
         // A new segment at each file.
-        let mut seam = Some(format!("{} (new file)", f.path));
+        // The seam's text goes into a `#` comment line: one line.
+        let shown = f.path.replace(['\n', '\r'], " ");
+        let mut seam = Some(format!("{shown} (new file)"));
         let mut previous_raw: Option<f64> = None;
         let mut shift = 0.0;
         for row in reader.records() {
@@ -347,8 +352,7 @@ fn import_record(
             if let Some(prev) = previous_raw {
                 if t_raw < prev {
                     let why = format!(
-                        "{}:{line}: the logger's clock restarts ({} s after {} s)",
-                        f.path,
+                        "{shown}:{line}: the logger's clock restarts ({} s after {} s)",
                         num(t_raw),
                         num(prev)
                     );
@@ -371,6 +375,9 @@ fn import_record(
                     out.segments.push((out.samples.len(), why));
                 }
             }
+            if load_n > 0.0 {
+                positive_loads += 1;
+            }
             if load_n < 0.0 {
                 if negative_loads == 0 {
                     first_negative = format!("{file}:{line}");
@@ -386,10 +393,25 @@ fn import_record(
                 contraction,
             };
             if let Err((column, v, allowed)) = data::check_physical(&s) {
+                // Name the logger's column (or the mapping's held value).
+                let (label, fix) = match (column, &source) {
+                    ("load_n", _) => (Some(load.label.clone()), "the load column's unit"),
+                    ("pressure_mpa", _) => {
+                        (Some(pressure.label.clone()), "the pressure column's unit")
+                    }
+                    (_, Source::Contraction(r) | Source::Length(r, _)) => (
+                        Some(r.label.clone()),
+                        "the contraction or length column's unit",
+                    ),
+                    _ => (None, "this file's held_length and the record's rest_length"),
+                };
                 return Err(err(
                     line,
-                    Some(column.to_string()),
-                    format!("converted value {} is impossible ({allowed}): check the unit in the mapping", num(v)),
+                    label,
+                    format!(
+                        "converted {column} {} is impossible ({allowed}): check {fix} in the mapping",
+                        num(v)
+                    ),
                 ));
             }
             if let Some(last) = out.samples.last() {
@@ -413,6 +435,22 @@ fn import_record(
                 ));
             }
         }
+    }
+    if negative_loads > positive_loads {
+        // Not an offset on a slack muscle: the sign.
+        return Err(ImportError {
+            file: first_negative,
+            line: 0,
+            column: None,
+            why: format!(
+                "the load is below 0 N on {negative_loads} of {} samples of record `{}` (down to \
+                 {} N): a muscle only pulls; is the load cell's sign reversed? set `scale = -1` \
+                 for columns.load in the mapping",
+                out.samples.len(),
+                spec.name,
+                num(most_negative)
+            ),
+        });
     }
     if negative_loads > 0 {
         out.warnings.push(format!(
