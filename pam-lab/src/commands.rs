@@ -432,7 +432,7 @@ pub fn simulate_text(
             named.join(" + ")
         )
     };
-    format!(
+    let mut text = format!(
         "simulated {} samples of {} with {} ({with}): contraction error RMS {:.5}, max {:.5}; \
          pressure error RMS {:.5} MPa, max {:.5} MPa\n",
         sim.len(),
@@ -442,7 +442,32 @@ pub fn simulate_text(
         sum.contraction_max,
         sum.pressure_rms_mpa,
         sum.pressure_max_mpa
-    )
+    );
+    // An isometric test's slack samples (force at the load cell's floor)
+    // are no samples of the model: its errors without them, as fit's.
+    if fit::detect_test(&record.samples) == fit::TestKind::Isometric {
+        let slack = fit::slack_mask(&record.samples, fit::TestKind::Isometric);
+        let loaded: Vec<SimSample> = sim
+            .iter()
+            .zip(&slack)
+            .filter(|(_, s)| !**s)
+            .map(|(x, _)| *x)
+            .collect();
+        if !loaded.is_empty() && loaded.len() < sim.len() {
+            let l = simulate::summary(&loaded);
+            text.push_str(&format!(
+                "  isometric test, the {} samples under load (the {} slack ones left out, as fit \
+                 leaves them out): pressure error RMS {:.5} MPa, max {:.5} MPa; contraction error \
+                 RMS {:.5}\n",
+                loaded.len(),
+                sim.len() - loaded.len(),
+                l.pressure_rms_mpa,
+                l.pressure_max_mpa,
+                l.contraction_rms
+            ));
+        }
+    }
+    text
 }
 
 #[cfg(test)]

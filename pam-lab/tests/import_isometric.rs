@@ -154,6 +154,20 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
     eprintln!("validation pressure RMS: model {model:.4} MPa, reference {reference:.4} MPa");
     assert!(model.is_finite() && model > 0.0, "{model}");
     assert!(stdout.contains("reference surface"), "{stdout}");
+
+    // simulate judges the same samples: the slack ones are left out.
+    let (ok, stdout, stderr) = pam_lab(&[
+        "simulate",
+        fit_dir.join("model.json").to_str().unwrap(),
+        out.join("test.csv").to_str().unwrap(),
+        "-o",
+        dir.path().join("sim.csv").to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}{stderr}");
+    assert!(
+        stdout.contains("isometric test, the ") && stdout.contains(" slack ones left out"),
+        "{stdout}"
+    );
 }
 
 #[test]
