@@ -820,6 +820,49 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
     Ok(())
 }
 
+/// Highest pressure a pneumatic muscle is commonly run at, MPa (Festo's
+/// are rated to 0.8 MPa): a record above it is more likely in bar.
+pub const PNEUMATIC_TOP_MPA: f64 = 1.0;
+
+/// Units a record's values suggest were not the format's, said as
+/// warnings (the values are possible, so not refused): a pressure above
+/// [`PNEUMATIC_TOP_MPA`] on most of a sweep (bar for MPa), a time step of a
+/// second or more over a record of hours (milliseconds for seconds: a rig
+/// that shows a hysteresis loop samples far faster).
+pub fn unit_warnings(record: &Record) -> Vec<String> {
+    let s = &record.samples;
+    let mut out = Vec::new();
+    if s.len() < 3 {
+        return out;
+    }
+    let mut p: Vec<f64> = s.iter().map(|x| x.pressure_mpa).collect();
+    p.sort_by(f64::total_cmp);
+    let p99 = p[(p.len() - 1) * 99 / 100];
+    if p99 > PNEUMATIC_TOP_MPA {
+        out.push(format!(
+            "{}: column `pressure_mpa` reaches {} MPa: a pneumatic muscle works below about {} \
+             MPa; if the column is in bar, divide it by 10 (a hydraulic muscle: ignore this)",
+            record.source,
+            num(p99),
+            PNEUMATIC_TOP_MPA
+        ));
+    }
+    let mut dt: Vec<f64> = s.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
+    dt.sort_by(f64::total_cmp);
+    let median_dt = dt[dt.len() / 2];
+    let hours = (s[s.len() - 1].t_s - s[0].t_s) / 3600.0;
+    if median_dt >= 1.0 && hours >= 5.0 {
+        out.push(format!(
+            "{}: column `t_s` steps {} s per sample over {:.1} h: if the column is in \
+             milliseconds, divide it by 1000 (the effects' time constants depend on it)",
+            record.source,
+            num(median_dt),
+            hours
+        ));
+    }
+    out
+}
+
 /// Whether a stretch of constant contraction while the pressure moves is
 /// an isometric hold, not a stuck sensor: at a held length the muscle
 /// answers the pressure with force, so the load moves well above its noise

@@ -455,6 +455,9 @@ fn run_fit(
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Fit)?;
+    for w in pam_lab::data::unit_warnings(&record) {
+        warn(&w);
+    }
     let validation = match validate {
         Some(v) => {
             rep.stage(&format!("reading {}", v.display()));
@@ -530,6 +533,9 @@ fn run_simulate(
     let loaded = pam_lab::model_file::load(model)?;
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Simulate)?;
+    for w in pam_lab::data::unit_warnings(&record) {
+        warn(&w);
+    }
     rep.stage("simulating");
     let (sim, warnings) = commands::simulate_record(&loaded, config, &record)
         .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
@@ -579,6 +585,9 @@ fn run_diagnose(
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Diagnose)?;
+    for w in pam_lab::data::unit_warnings(&record) {
+        warn(&w);
+    }
     rep.stage(&format!(
         "diagnosing {} samples: base fit, then each candidate effect",
         record.len()

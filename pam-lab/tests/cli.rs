@@ -394,3 +394,46 @@ fn simulate_runs_the_effects_of_the_model_file() {
         plain.len()
     );
 }
+
+#[test]
+fn units_that_look_wrong_are_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = generate(
+        &Params::DEFAULT,
+        &Protocol::quick(&[100.0, 300.0]),
+        0.001,
+        0.0008,
+        5,
+    );
+    // Pressure in bar, time in milliseconds.
+    let mut text = String::from("t_s,load_n,pressure_mpa,contraction\n");
+    for s in &rec.samples {
+        text.push_str(&format!(
+            "{:.1},{},{:.4},{:.5}\n",
+            s.t_s * 1000.0,
+            s.load_n,
+            s.pressure_mpa * 10.0,
+            s.contraction
+        ));
+    }
+    let data = dir.path().join("units.csv");
+    std::fs::write(&data, text).unwrap();
+    let out = dir.path().join("out");
+    let (ok, _, stderr) = pam_lab(&[
+        "fit",
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--no-plot",
+        "-q",
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stderr.contains("column `pressure_mpa` reaches") && stderr.contains("divide it by 10"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("column `t_s` steps") && stderr.contains("divide it by 1000"),
+        "{stderr}"
+    );
+}
