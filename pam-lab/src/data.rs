@@ -825,8 +825,8 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
 pub const PNEUMATIC_TOP_MPA: f64 = 1.0;
 
 /// Units a record's values suggest were not the format's, said as
-/// warnings (the values are possible, so not refused): a pressure above
-/// [`PNEUMATIC_TOP_MPA`] on most of a sweep (bar for MPa), a time step of a
+/// warnings (the values are possible, so not refused): a pressure whose
+/// top (99th percentile) is above [`PNEUMATIC_TOP_MPA`] (bar for MPa), a time step of a
 /// second or more over a record of hours (milliseconds for seconds: a rig
 /// that shows a hysteresis loop samples far faster).
 pub fn unit_warnings(record: &Record) -> Vec<String> {
