@@ -222,7 +222,8 @@ fn import_record(
         segments: Vec::new(),
         warnings: Vec::new(),
     };
-    let (mut negative_loads, mut positive_loads) = (0usize, 0usize);
+    let mut negative_loads = 0usize;
+    let mut most_positive = 0.0f64;
     let mut most_negative = 0.0f64;
     let mut first_negative = String::new();
     for f in &spec.files {
@@ -375,9 +376,7 @@ fn import_record(
                     out.segments.push((out.samples.len(), why));
                 }
             }
-            if load_n > 0.0 {
-                positive_loads += 1;
-            }
+            most_positive = most_positive.max(load_n);
             if load_n < 0.0 {
                 if negative_loads == 0 {
                     first_negative = format!("{file}:{line}");
@@ -436,19 +435,20 @@ fn import_record(
             }
         }
     }
-    if negative_loads > positive_loads {
-        // Not an offset on a slack muscle: the sign.
+    if -most_negative > most_positive {
+        // Not an offset on a slack muscle (a few newtons below a pull of
+        // hundreds): the muscle's pull itself reads negative.
         return Err(ImportError {
             file: first_negative,
             line: 0,
             column: None,
             why: format!(
-                "the load is below 0 N on {negative_loads} of {} samples of record `{}` (down to \
-                 {} N): a muscle only pulls; is the load cell's sign reversed? set `scale = -1` \
-                 for columns.load in the mapping",
-                out.samples.len(),
-                spec.name,
-                num(most_negative)
+                "the load reaches {} N but never more than {} N in record `{}`: a muscle only \
+                 pulls; is the load cell's sign reversed? set `scale = -1` for columns.load in \
+                 the mapping",
+                num(most_negative),
+                num(most_positive),
+                spec.name
             ),
         });
     }
