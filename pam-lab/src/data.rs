@@ -870,7 +870,6 @@ pub fn unit_warnings(record: &Record) -> Vec<String> {
 /// contraction sensor on an isotonic rig shows a hung load that does not
 /// follow the pressure.
 fn held_length(run: &[Sample]) -> bool {
-    let n = run.len() as f64;
     if run.len() < 3 {
         return false;
     }
@@ -881,17 +880,27 @@ fn held_length(run: &[Sample]) -> bool {
     if !(hi - lo > 5.0 * load_noise && hi > lo) {
         return false;
     }
-    let (mp, ml) = run.iter().fold((0.0, 0.0), |(a, b), s| {
-        (a + s.pressure_mpa / n, b + s.load_n / n)
-    });
-    let (mut spl, mut spp, mut sll) = (0.0, 0.0, 0.0);
-    for s in run {
-        let (dp, dl) = (s.pressure_mpa - mp, s.load_n - ml);
-        spl += dp * dl;
-        spp += dp * dp;
-        sll += dl * dl;
+    correlation(run, |s| s.pressure_mpa, |s| s.load_n) >= 0.5
+}
+
+/// Pearson correlation of two channels over a record (0 when one holds).
+pub fn correlation(samples: &[Sample], f: fn(&Sample) -> f64, g: fn(&Sample) -> f64) -> f64 {
+    let n = samples.len().max(1) as f64;
+    let (mf, mg) = samples
+        .iter()
+        .fold((0.0, 0.0), |(a, b), s| (a + f(s) / n, b + g(s) / n));
+    let (mut sfg, mut sff, mut sgg) = (0.0, 0.0, 0.0);
+    for s in samples {
+        let (df, dg) = (f(s) - mf, g(s) - mg);
+        sfg += df * dg;
+        sff += df * df;
+        sgg += dg * dg;
     }
-    spp > 0.0 && sll > 0.0 && spl / (spp * sll).sqrt() >= 0.5
+    if sff > 0.0 && sgg > 0.0 {
+        sfg / (sff * sgg).sqrt()
+    } else {
+        0.0
+    }
 }
 
 /// Robust standard deviation of white noise on a smooth signal, from the

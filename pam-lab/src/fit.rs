@@ -782,26 +782,6 @@ pub fn slack_mask(samples: &[Sample], test: TestKind) -> Vec<bool> {
     }
 }
 
-/// Pearson correlation of two channels over a record (0 when one holds).
-fn correlation(samples: &[Sample], f: fn(&Sample) -> f64, g: fn(&Sample) -> f64) -> f64 {
-    let n = samples.len().max(1) as f64;
-    let (mf, mg) = samples
-        .iter()
-        .fold((0.0, 0.0), |(a, b), s| (a + f(s) / n, b + g(s) / n));
-    let (mut sfg, mut sff, mut sgg) = (0.0, 0.0, 0.0);
-    for s in samples {
-        let (df, dg) = (f(s) - mf, g(s) - mg);
-        sfg += df * dg;
-        sff += df * df;
-        sgg += dg * dg;
-    }
-    if sff > 0.0 && sgg > 0.0 {
-        sfg / (sff * sgg).sqrt()
-    } else {
-        0.0
-    }
-}
-
 /// Mistakes a record shows against the options, before any work: a
 /// `--test` the record contradicts, a `--pmax` below most of the samples,
 /// and (isotonic records) a contraction that falls as the pressure rises.
@@ -850,7 +830,7 @@ fn check_against_record(
     }
     let test = cfg.test.unwrap_or(detected);
     if test == TestKind::Isotonic {
-        let r = correlation(samples, |s| s.pressure_mpa, |s| s.contraction);
+        let r = crate::data::correlation(samples, |s| s.pressure_mpa, |s| s.contraction);
         if r < -0.5 {
             return Err(FitError::Data(DataError {
                 file: record.source.clone(),

@@ -10,6 +10,22 @@ use pam_core::{Branch, Coeffs, Params};
 
 use crate::data::{Record, Sample};
 
+/// Force, N, of a 10 mm McKibben muscle at gauge pressure `p_mpa` and
+/// contraction `eps` from physics, not from pam-core's equations: the
+/// Chou–Hannaford law (braid angle 23°) above a threshold pressure
+/// `0.04 + 1.2·eps` MPa, less a braid friction of 6 N + 6 % against the
+/// pressure's motion (`filling`), never below 0 (a slack muscle). For test
+/// plants of isometric records.
+pub fn chou_hannaford_force_n(p_mpa: f64, eps: f64, filling: bool) -> f64 {
+    let theta = 23f64.to_radians();
+    let (a, b) = (3.0 / theta.tan().powi(2), 1.0 / theta.sin().powi(2));
+    let area_m2 = std::f64::consts::PI * 0.01f64.powi(2) / 4.0;
+    let p_th = 0.04 + 1.2 * eps;
+    let ideal = (p_mpa - p_th).max(0.0) * 1e6 * area_m2 * (a * (1.0 - eps).powi(2) - b);
+    let friction = 6.0 + 0.06 * ideal;
+    (ideal - if filling { friction } else { -friction }).max(0.0)
+}
+
 /// One move of the pressure drive.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Move {

@@ -11,19 +11,7 @@ use std::path::Path;
 #[path = "support/cli.rs"]
 mod cli_support;
 use cli_support::pam_lab;
-
-/// Force, N, of a 10 mm McKibben muscle at `p_mpa` and contraction `eps`
-/// (Chou–Hannaford, braid angle 23°), less a threshold pressure and a
-/// friction force against the motion of the pressure (`filling`).
-fn force_n(p_mpa: f64, eps: f64, filling: bool) -> f64 {
-    let theta = 23f64.to_radians();
-    let (a, b) = (3.0 / theta.tan().powi(2), 1.0 / theta.sin().powi(2));
-    let area_m2 = std::f64::consts::PI * 0.01f64.powi(2) / 4.0;
-    let p_th = 0.04 + 1.2 * eps;
-    let ideal = (p_mpa - p_th).max(0.0) * 1e6 * area_m2 * (a * (1.0 - eps).powi(2) - b);
-    let friction = 6.0 + 0.06 * ideal;
-    (ideal - if filling { friction } else { -friction }).max(0.0)
-}
+use pam_lab::synth::chou_hannaford_force_n;
 
 /// One test at one held length: fill to 0.62 MPa, hold, vent to a floor;
 /// 1.8 ms samples. `reset_at`: the logger's clock restarts at that sample.
@@ -49,7 +37,7 @@ fn write_test(path: &Path, eps: f64, seed: u64, reset_at: Option<usize>) {
         } else {
             (0.07 + 0.55 * (-(t - 9.0) / 1.2).exp(), false)
         };
-        let f = force_n(p, eps, filling);
+        let f = chou_hannaford_force_n(p, eps, filling);
         // The load cell reads −4.6 N at no force, ±0.7 N of noise; the
         // pressure sensor is quantised to 0.766 kPa.
         let force = f - 4.6 + 1.4 * noise();

@@ -9,17 +9,7 @@ use firmware::{Controller, ControllerConfig};
 use pam_core::{blob, Coeffs};
 use pam_lab::data::{Record, Sample};
 use pam_lab::fit::{fit, FitConfig, Holdout, TestKind};
-
-/// Force, N, of a 10 mm muscle at `p_mpa` and contraction `eps`, less
-/// friction against the pressure's motion.
-fn force_n(p_mpa: f64, eps: f64, filling: bool) -> f64 {
-    let theta = 23f64.to_radians();
-    let (a, b) = (3.0 / theta.tan().powi(2), 1.0 / theta.sin().powi(2));
-    let area_m2 = std::f64::consts::PI * 0.01f64.powi(2) / 4.0;
-    let ideal = (p_mpa - 0.04 - 1.2 * eps).max(0.0) * 1e6 * area_m2 * (a * (1.0 - eps).powi(2) - b);
-    let friction = 6.0 + 0.06 * ideal;
-    (ideal - if filling { friction } else { -friction }).max(0.0)
-}
+use pam_lab::synth::chou_hannaford_force_n;
 
 fn isometric_record() -> Record {
     let mut samples = Vec::new();
@@ -36,7 +26,7 @@ fn isometric_record() -> Record {
                 let wobble = 1e-3 * f64::from((i * 7 + cycle * 13) % 11) - 5e-3;
                 samples.push(Sample {
                     t_s: t,
-                    load_n: force_n(p, eps, filling) + 5.0 * wobble,
+                    load_n: chou_hannaford_force_n(p, eps, filling) + 5.0 * wobble,
                     pressure_mpa: p + 0.2 * wobble,
                     contraction: eps,
                 });
