@@ -6,7 +6,7 @@
 use crate::{GpiCoeffs, GpiTable, PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};
 use pam_core::{CriticalPoints, Params, Point};
 
-/// pam-core's parameters: pam_lab::fit::fit on the training cycles.
+/// pam-core's parameters: pam_lab::identify::fit::fit on the training cycles.
 pub const PAM_PARAMS: Params = Params {
     min_load_n: 100.0,
     max_load_n: 600.0,

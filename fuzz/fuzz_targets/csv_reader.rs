@@ -7,7 +7,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pam_lab::data::{check_physical, parse_csv};
+use pam_lab::record::{check_physical, parse_csv};
 
 fuzz_target!(|data: &[u8]| {
     match parse_csv("fuzz.csv", data) {

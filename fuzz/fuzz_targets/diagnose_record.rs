@@ -9,8 +9,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use pam_lab::commands;
-use pam_lab::data::Purpose;
-use pam_lab::diagnose::DiagnoseConfig;
+use pam_lab::record::Purpose;
+use pam_lab::identify::diagnose::DiagnoseConfig;
 
 fuzz_target!(|data: &[u8]| {
     let record = match commands::parse_record("fuzz.csv", data, Purpose::Diagnose) {
@@ -26,7 +26,7 @@ fuzz_target!(|data: &[u8]| {
             assert_eq!(r.predicted_base.len(), record.len());
             assert_eq!(r.predicted_after.len(), record.len());
             assert!(serde_json::to_string(&r).is_ok());
-            let _ = pam_lab::diagnose::summary(&r);
+            let _ = pam_lab::identify::diagnose::summary(&r);
         }
         Err(e) => assert!(!e.to_string().is_empty()),
     }

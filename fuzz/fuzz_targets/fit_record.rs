@@ -10,8 +10,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use pam_lab::commands;
-use pam_lab::data::Purpose;
-use pam_lab::fit::FitConfig;
+use pam_lab::record::Purpose;
+use pam_lab::identify::fit::FitConfig;
 
 fuzz_target!(|data: &[u8]| {
     let record = match commands::parse_record("fuzz.csv", data, Purpose::Fit) {
@@ -40,7 +40,7 @@ fuzz_target!(|data: &[u8]| {
                 .find(|f| f.0 == "model.json")
                 .unwrap()
                 .1;
-            let m: pam_lab::model_file::ModelFile = serde_json::from_slice(json).expect("json");
+            let m: pam_lab::export::model_file::ModelFile = serde_json::from_slice(json).expect("json");
             assert_eq!(m.params, params);
             let text = commands::fit_text(&outcome, &record, &cfg);
             assert!(text.contains("fuzz.csv"));

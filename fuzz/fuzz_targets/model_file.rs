@@ -16,7 +16,7 @@ use std::sync::OnceLock;
 use libfuzzer_sys::fuzz_target;
 use pam_core::Coeffs;
 use pam_fuzz::check_coeffs;
-use pam_lab::model_file;
+use pam_lab::export::model_file;
 
 fn scratch() -> &'static PathBuf {
     static PATH: OnceLock<PathBuf> = OnceLock::new();

@@ -262,12 +262,12 @@ fn retime_from_zero(out: &mut [Sample]) {
 
 /// `samples` as the record pam-lab reads from a CSV file (`source` names it
 /// in messages): what `fit` and `diagnose` would see of the rig's log.
-pub fn to_record(source: impl Into<String>, samples: &[Sample]) -> pam_lab::data::Record {
-    pam_lab::data::Record::from_samples(
+pub fn to_record(source: impl Into<String>, samples: &[Sample]) -> pam_lab::record::Record {
+    pam_lab::record::Record::from_samples(
         source,
         samples
             .iter()
-            .map(|s| pam_lab::data::Sample {
+            .map(|s| pam_lab::record::Sample {
                 t_s: s.t_s,
                 load_n: s.load_n,
                 pressure_mpa: s.pressure_mpa,

@@ -8,7 +8,7 @@
 //!    (100–600 N, slow and fast cycles, reversals inside the loop);
 //! 2. `fit` and `diagnose` on it through pam-lab's command layer
 //!    ([`pam_lab::commands::fit_record`], [`pam_lab::commands::diagnose_record`])
-//!    and the `model.blob` each writes ([`pam_lab::model_file::model_files`]);
+//!    and the `model.blob` each writes ([`pam_lab::export::model_file::model_files`]);
 //! 3. each blob through the firmware's boot path
 //!    ([`firmware::controller::model_from_blob`]) into a [`Controller`];
 //! 4. every scenario on a fresh rig of the same muscle: PI alone, the
@@ -25,9 +25,9 @@ use crate::rig::Rig;
 use crate::scenarios::Scenario;
 use firmware::controller::{model_from_blob, Controller};
 use pam_lab::commands::{diagnose_record, fit_record};
-use pam_lab::data::Record;
-use pam_lab::diagnose::DiagnoseConfig;
-use pam_lab::fit::FitConfig;
+use pam_lab::identify::diagnose::DiagnoseConfig;
+use pam_lab::identify::fit::FitConfig;
+use pam_lab::record::Record;
 
 /// What the host tools made of one rig's record.
 #[derive(Clone, Debug)]
@@ -105,7 +105,7 @@ pub fn identify(record: &Record) -> Result<Identified, String> {
     let paper_blob = blob_of(&fit.files).ok_or("fit wrote no model.blob")?;
     let report = diagnose_record(record, &DiagnoseConfig::default(), &|_| {})
         .map_err(|e| format!("diagnose refused the record: {e}"))?;
-    let files = pam_lab::model_file::model_files(
+    let files = pam_lab::export::model_file::model_files(
         &report.final_params,
         &report.effects,
         None,

@@ -8,7 +8,7 @@
 //! ```
 
 use pam_core::{Coeffs, Params};
-use pam_lab::fit::{fit, FitConfig};
+use pam_lab::identify::fit::{fit, FitConfig};
 
 /// Largest allowed difference per parameter (contraction as a fraction of
 /// rest length, MPa, or per load step). The fit is deterministic and the
@@ -20,7 +20,7 @@ const TOLERANCE: f32 = 1e-5;
 
 /// The record as the CLI sees it: host-sim's run written as the project CSV
 /// (`host_sim::write_samples_csv`, what the main job writes) and read back.
-fn characterisation_csv(seed: u64) -> pam_lab::data::Record {
+fn characterisation_csv(seed: u64) -> pam_lab::record::Record {
     let dir = std::env::temp_dir().join(format!(
         "pam-lab-default-coeffs-{}-{seed}",
         std::process::id()
@@ -28,7 +28,7 @@ fn characterisation_csv(seed: u64) -> pam_lab::data::Record {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("characterisation.csv");
     host_sim::write_samples_csv(&path, &host_sim::characterisation_run(seed)).unwrap();
-    let rec = pam_lab::data::read_csv(&path).unwrap();
+    let rec = pam_lab::record::read_csv(&path).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
     rec
 }

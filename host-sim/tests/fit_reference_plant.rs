@@ -1,7 +1,7 @@
 //! Fits on data from host-sim's independent plant (not pam-core's equations).
 
-use pam_lab::data::Record;
-use pam_lab::fit::{fit, FitConfig};
+use pam_lab::identify::fit::{fit, FitConfig};
+use pam_lab::record::Record;
 
 fn characterisation(seed: u64) -> Record {
     host_sim::to_record(

@@ -8,8 +8,8 @@
 //! ```
 
 use pam_core::Coeffs;
-use pam_lab::data::Record;
-use pam_lab::fit::{fit, FitConfig, TestKind};
+use pam_lab::identify::fit::{fit, FitConfig, TestKind};
+use pam_lab::record::Record;
 
 fn record(name: &str, run: Vec<host_sim::rig::Sample>) -> Record {
     host_sim::to_record(name, &run)

@@ -3,8 +3,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use pam_core::Params;
-use pam_lab::data::parse_csv;
-use pam_lab::fit::{fit, FitConfig};
+use pam_lab::identify::fit::{fit, FitConfig};
+use pam_lab::record::parse_csv;
 use pam_lab::synth::{generate, Protocol};
 
 fn bench(c: &mut Criterion) {

@@ -18,17 +18,17 @@ use std::path::Path;
 
 use pam_core::{Coeffs, TrackerConfig};
 
-use crate::data::{self, num, num32, DataError, Purpose, Record};
-use crate::diagnose::{self, DiagnoseConfig, DiagnoseError, DiagnoseReport};
-use crate::fit::{self, FitConfig, FitError, FitReport, Progress};
-use crate::model_file::{self, FitSummary, LoadedModel};
+use crate::evaluate::simulate::{self, SimSample};
+use crate::export::model_file::{self, FitSummary, LoadedModel};
+use crate::identify::diagnose::{self, DiagnoseConfig, DiagnoseError, DiagnoseReport};
+use crate::identify::fit::{self, FitConfig, FitError, FitReport, Progress};
 use crate::output::OutputSet;
-use crate::simulate::{self, SimSample};
+use crate::record::{self, num, num32, DataError, Purpose, Record};
 
-/// Read `path` and check it for `purpose` ([`data::read_csv`], then
-/// [`data::check_record`], and for `diagnose` [`check_load_blocks`]).
+/// Read `path` and check it for `purpose` ([`record::read_csv`], then
+/// [`record::check_record`], and for `diagnose` [`check_load_blocks`]).
 pub fn read_record(path: &Path, purpose: Purpose) -> Result<Record, DataError> {
-    let record = data::read_csv(path)?;
+    let record = record::read_csv(path)?;
     check(&record, purpose)?;
     Ok(record)
 }
@@ -39,13 +39,13 @@ pub fn parse_record<R: Read>(
     reader: R,
     purpose: Purpose,
 ) -> Result<Record, DataError> {
-    let record = data::parse_csv(source, reader)?;
+    let record = record::parse_csv(source, reader)?;
     check(&record, purpose)?;
     Ok(record)
 }
 
 fn check(record: &Record, purpose: Purpose) -> Result<(), DataError> {
-    data::check_record(record, purpose)?;
+    record::check_record(record, purpose)?;
     if purpose == Purpose::Diagnose {
         check_load_blocks(record)?;
     }
@@ -53,12 +53,12 @@ fn check(record: &Record, purpose: Purpose) -> Result<(), DataError> {
 }
 
 /// `diagnose` cuts its hold-out at load changes
-/// ([`crate::split::holdout_by_load_block`]); a load column that changes between
+/// ([`crate::record::split::holdout_by_load_block`]); a load column that changes between
 /// most samples (an isometric record's measured force, a noisy load cell)
 /// has no such blocks: refused before the work, with the reason.
 pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
     let loads: Vec<f64> = record.samples.iter().map(|s| s.load_n).collect();
-    let mask = crate::split::holdout_by_load_block(&loads);
+    let mask = crate::record::split::holdout_by_load_block(&loads);
     let blocks = 1 + mask.windows(2).filter(|w| w[0] != w[1]).count();
     let mean_len = record.len() as f64 / blocks as f64;
     if blocks > 1 && mean_len < 50.0 {
@@ -66,7 +66,7 @@ pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
             file: record.source.clone(),
             line: 0,
             column: Some("load_n".into()),
-            kind: data::DataErrorKind::TooFewSamples(format!(
+            kind: record::DataErrorKind::TooFewSamples(format!(
                 "diagnose holds out whole stretches of one load (within 1 N), but the load \
                  changes so often that the {} samples make {blocks} stretches of {:.1} samples \
                  on average: it needs an isotonic record that logs its hung load (an isometric \
@@ -167,7 +167,7 @@ pub fn stage_fit(
         let r = &outcome.report;
         set.add_via_path(&dir.join("fit.png"), |p| {
             let slack = fit::slack_mask(&record.samples, r.test_kind);
-            crate::plot::fit_plot(
+            crate::report::plot::fit_plot(
                 p,
                 record,
                 &r.split,
@@ -333,10 +333,10 @@ pub fn stage_diagnose(
     }
     if draw {
         set.add_via_path(&dir.join("residual.png"), |p| {
-            crate::diagnose_plot::residual_plot(report, record, p)
+            crate::report::diagnose_plot::residual_plot(report, record, p)
         })?;
         set.add_via_path(&dir.join("loops.png"), |p| {
-            crate::diagnose_plot::loops_plot(report, record, p)
+            crate::report::diagnose_plot::loops_plot(report, record, p)
         })?;
     }
     Ok(())
@@ -370,7 +370,7 @@ pub fn range_warnings(coeffs: &Coeffs, record: &Record) -> Vec<String> {
     let mut out = Vec::new();
     let mut describe = |what: &str,
                         outside: &dyn Fn(f64) -> bool,
-                        get: fn(&data::Sample) -> f64,
+                        get: fn(&record::Sample) -> f64,
                         range: String,
                         effect: &str| {
         let idx: Vec<usize> = (0..record.len())
@@ -480,7 +480,7 @@ mod tests {
         let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
         let p = coeffs.params();
         let mid = f64::from(p.min_load_n + p.max_load_n) / 2.0;
-        let s = |load| data::Sample {
+        let s = |load| record::Sample {
             t_s: 0.0,
             load_n: load,
             pressure_mpa: 0.1,

@@ -1,18 +1,24 @@
 //! # pam-lab
 //!
-//! Host-side tools around [`pam_core`]: identify the paper's hysteresis model
-//! from test-rig measurements ([`fit`]), drive the model with measured
-//! pressure and load ([`simulate`]), find where simulation and measurement
-//! disagree, name the missing effect and add it ([`diagnose`]), and export
-//! what the firmware flashes ([`model_file`]: the model file, the coefficient
-//! blob and a Rust constants file).
+//! Host-side tools around [`pam_core`], one pipeline, a module a stage:
 //!
-//! The binary `pam-lab` is a thin command-line layer over these modules
-//! (`fit`, `simulate`, `diagnose`); the library is the reusable part, for
-//! tests, fuzzing and your own scripts.
+//! 1. [`record`]: read a record (pam's CSV, or a logger's files through a
+//!    column map, [`record::import`]), validate it, split its branches.
+//! 2. [`evaluate`]: drive a model over the record with pam-core's simulator
+//!    ([`evaluate::simulate`]) and measure its errors.
+//! 3. [`identify`]: the paper's model from the record
+//!    ([`identify::fit`]), the effects it misses ([`identify::diagnose`]),
+//!    the generic surface both are judged against ([`identify::reference`]).
+//! 4. [`export`]: the model file, the coefficient blob, Rust constants.
+//! 5. [`report`]: plots.
+//!
+//! [`commands`] runs the stages for the binary's commands and writes their
+//! files all or none ([`output`]); [`synth`] generates test records.
+//! The library is the reusable part, for tests, fuzzing and your own scripts.
 //!
 //! ```
-//! use pam_lab::{data, fit, synth};
+//! use pam_lab::identify::fit;
+//! use pam_lab::{record, synth};
 //! use pam_core::Params;
 //!
 //! // A characterisation record generated from the built-in reference muscle.
@@ -20,22 +26,15 @@
 //! let report = fit::fit(&record, &fit::FitConfig::default()).unwrap();
 //! let got = report.params.points.root_contraction;
 //! assert!((got - Params::DEFAULT.points.root_contraction).abs() < 1e-3);
-//! # let _ = data::Record::default();
+//! # let _ = record::Record::default();
 //! ```
 #![warn(missing_docs)]
 
 pub mod commands;
-pub mod data;
-pub mod diagnose;
-pub mod diagnose_plot;
-pub mod fit;
-pub mod import;
-pub mod lsq;
-pub mod model_file;
+pub mod evaluate;
+pub mod export;
+pub mod identify;
 pub mod output;
-pub mod plot;
-pub mod reference;
-pub mod simulate;
-pub mod split;
-pub mod stats;
+pub mod record;
+pub mod report;
 pub mod synth;

@@ -17,11 +17,11 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use pam_core::TrackerConfig;
 use pam_lab::commands;
-use pam_lab::data::Purpose;
-use pam_lab::diagnose::DiagnoseConfig;
-use pam_lab::fit::{FitConfig, Holdout, Progress, TestKind};
+use pam_lab::identify::diagnose::DiagnoseConfig;
+use pam_lab::identify::fit::{FitConfig, Holdout, Progress, TestKind};
 use pam_lab::output::OutputSet;
-use pam_lab::split::SplitConfig;
+use pam_lab::record::split::SplitConfig;
+use pam_lab::record::Purpose;
 
 #[derive(Parser)]
 #[command(
@@ -387,7 +387,7 @@ fn run_import(
     only: &[String],
     common: Common,
 ) -> Result<()> {
-    let map = pam_lab::import::read_mapping(mapping)?;
+    let map = pam_lab::record::import::read_mapping(mapping)?;
     let mut set = OutputSet::new();
     set.protect(mapping);
     for r in &map.records {
@@ -405,7 +405,7 @@ fn run_import(
     set.check_in_dir(out, &names.iter().map(String::as_str).collect::<Vec<_>>())?;
     let rep = Reporter::new(common);
     rep.stage(&format!("reading the files of {}", mapping.display()));
-    let records = pam_lab::import::import(&map, data_dir, only)?;
+    let records = pam_lab::record::import::import(&map, data_dir, only)?;
     let mut text = String::new();
     for r in &records {
         for w in &r.warnings {
@@ -455,7 +455,7 @@ fn run_fit(
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Fit)?;
-    for w in pam_lab::data::unit_warnings(&record) {
+    for w in pam_lab::record::unit_warnings(&record) {
         warn(&w);
     }
     let validation = match validate {
@@ -530,10 +530,10 @@ fn run_simulate(
     }
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", model.display()));
-    let loaded = pam_lab::model_file::load(model)?;
+    let loaded = pam_lab::export::model_file::load(model)?;
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Simulate)?;
-    for w in pam_lab::data::unit_warnings(&record) {
+    for w in pam_lab::record::unit_warnings(&record) {
         warn(&w);
     }
     rep.stage("simulating");
@@ -543,12 +543,12 @@ fn run_simulate(
         warn(w);
     }
     if !to_stdout {
-        set.add_with(out, |w| pam_lab::simulate::write_csv(w, &sim))?;
+        set.add_with(out, |w| pam_lab::evaluate::simulate::write_csv(w, &sim))?;
     }
     if let Some(p) = plot {
         rep.stage("plotting");
         set.add_via_path(p, |tmp| {
-            pam_lab::plot::simulate_plot(tmp, &record.source, &sim)
+            pam_lab::report::plot::simulate_plot(tmp, &record.source, &sim)
         })?;
     }
     let written = set.commit()?;
@@ -556,7 +556,7 @@ fn run_simulate(
     let summary = commands::simulate_text(&sim, &record, model, &loaded.effects) + &wrote(&written);
     if to_stdout {
         let mut w = std::io::BufWriter::new(std::io::stdout().lock());
-        pam_lab::simulate::write_csv(&mut w, &sim)?;
+        pam_lab::evaluate::simulate::write_csv(&mut w, &sim)?;
         w.flush()?;
         if !common.quiet {
             let _ = write!(std::io::stderr(), "{summary}");
@@ -585,7 +585,7 @@ fn run_diagnose(
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Diagnose)?;
-    for w in pam_lab::data::unit_warnings(&record) {
+    for w in pam_lab::record::unit_warnings(&record) {
         warn(&w);
     }
     rep.stage(&format!(
@@ -600,7 +600,7 @@ fn run_diagnose(
     let written = set.commit()?;
     rep.done();
     if !common.quiet {
-        print_out(&(pam_lab::diagnose::summary(&report) + &wrote(&written)))?;
+        print_out(&(pam_lab::identify::diagnose::summary(&report) + &wrote(&written)))?;
     }
     Ok(())
 }

@@ -8,7 +8,7 @@
 
 use pam_core::{Branch, Coeffs, Params};
 
-use crate::data::{Record, Sample};
+use crate::record::{Record, Sample};
 
 /// Force, N, of a 10 mm McKibben muscle at gauge pressure `p_mpa` and
 /// contraction `eps` from physics, not from pam-core's equations: the
@@ -234,7 +234,7 @@ pub fn generate(
 ) -> Record {
     let coeffs = Coeffs::new(*params).expect("generate: params must validate");
     let mut rng = Rng::new(seed);
-    let mut cache = crate::stats::ModelCache::new(&coeffs);
+    let mut cache = crate::evaluate::errors::ModelCache::new(&coeffs);
     let samples = protocol
         .drive()
         .into_iter()

@@ -246,7 +246,7 @@ fn simulate_warns_about_loads_outside_the_calibrated_range() {
     std::fs::write(&path, edited).unwrap();
     std::fs::write(
         dir.path().join("model.json"),
-        pam_lab::model_file::ModelFile::new(Params::DEFAULT, None).to_json(),
+        pam_lab::export::model_file::ModelFile::new(Params::DEFAULT, None).to_json(),
     )
     .unwrap();
     let out = pam_lab_in(
@@ -338,7 +338,7 @@ fn diagnose_with_no_rounds_reports_the_refitted_paper_model() {
 #[test]
 fn simulate_runs_the_effects_of_the_model_file() {
     use pam_core::effects::{Creep, Effects, NonLocalMemory};
-    use pam_lab::model_file::model_files;
+    use pam_lab::export::model_file::model_files;
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("rig.csv");
     write_record(&data, &[100.0, 300.0]);

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::Command;
 
 use pam_core::Params;
-use pam_lab::model_file::ModelFile;
+use pam_lab::export::model_file::ModelFile;
 use pam_lab::synth::{generate, Protocol};
 
 const HEADER: &str = "t_s,load_n,pressure_mpa,contraction";

@@ -11,7 +11,7 @@
 
 mod support;
 
-use pam_lab::diagnose::{diagnose, DiagnoseConfig, DiagnoseReport};
+use pam_lab::identify::diagnose::{diagnose, DiagnoseConfig, DiagnoseReport};
 use std::sync::OnceLock;
 
 use support::hidden_plants::{csv, csv_b, csv_below_pmax, Plant};
@@ -28,9 +28,9 @@ fn run_csv(plant: Plant, text: &str) -> DiagnoseReport {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(format!("{plant:?}.csv"));
     std::fs::write(&path, text).unwrap();
-    let record = pam_lab::data::read_csv(&path).unwrap();
+    let record = pam_lab::record::read_csv(&path).unwrap();
     let report = diagnose(&record, &DiagnoseConfig::default()).unwrap();
-    eprintln!("{}", pam_lab::diagnose::summary(&report));
+    eprintln!("{}", pam_lab::identify::diagnose::summary(&report));
     report
 }
 

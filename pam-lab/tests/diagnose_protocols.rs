@@ -17,16 +17,16 @@ mod support;
 
 use std::sync::OnceLock;
 
-use pam_lab::diagnose::{diagnose, DiagnoseConfig, DiagnoseReport};
+use pam_lab::identify::diagnose::{diagnose, DiagnoseConfig, DiagnoseReport};
 use support::hidden_plants::{self, Plant};
 
 fn run(name: &str, csv: String) -> DiagnoseReport {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join(format!("{name}.csv"));
     std::fs::write(&path, csv).unwrap();
-    let record = pam_lab::data::read_csv(&path).unwrap();
+    let record = pam_lab::record::read_csv(&path).unwrap();
     let report = diagnose(&record, &DiagnoseConfig::default()).unwrap();
-    eprintln!("{}", pam_lab::diagnose::summary(&report));
+    eprintln!("{}", pam_lab::identify::diagnose::summary(&report));
     report
 }
 
@@ -135,7 +135,7 @@ fn memory_and_rate_at_once_are_both_named_under_the_second_protocol() {
     // Greedy, creep (which stands in for part of the rate law's loops) or
     // the rate law came first here, and the memory on top of it did not
     // earn its place or left most of the error; the search over paths
-    // (pam-lab/src/diagnose/paths.rs) finds the memory first.
+    // (pam-lab/src/identify/diagnose/paths.rs) finds the memory first.
     let r = protocol_b(Plant::MemoryAndRate);
     both_named_in(r, Plant::MemoryAndRate);
     // The report lists every path followed; the one chosen is kept and

@@ -12,8 +12,8 @@
 //! ```
 
 use pam_core::Coeffs;
-use pam_lab::data::{Record, Sample};
-use pam_lab::fit::{fit, FitConfig, FitError, Holdout};
+use pam_lab::identify::fit::{fit, FitConfig, FitError, Holdout};
+use pam_lab::record::{Record, Sample};
 use pam_lab::synth::Rng;
 
 /// One random rig.

@@ -2,7 +2,7 @@
 //! noise (the noise of the example rigs: 0.001 MPa and 0.0008).
 
 use pam_core::{Branch, Coeffs, Params, Point};
-use pam_lab::fit::{fit, FitConfig, Holdout};
+use pam_lab::identify::fit::{fit, FitConfig, Holdout};
 use pam_lab::synth::{generate, Protocol};
 
 fn truth() -> Params {

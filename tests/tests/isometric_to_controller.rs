@@ -7,8 +7,8 @@
 use firmware::controller::Sample as ControllerSample;
 use firmware::{Controller, ControllerConfig};
 use pam_core::{blob, Coeffs};
-use pam_lab::data::{Record, Sample};
-use pam_lab::fit::{fit, FitConfig, Holdout, TestKind};
+use pam_lab::identify::fit::{fit, FitConfig, Holdout, TestKind};
+use pam_lab::record::{Record, Sample};
 use pam_lab::synth::chou_hannaford_force_n;
 
 fn isometric_record() -> Record {

@@ -5,7 +5,7 @@
 use firmware::controller::Sample;
 use firmware::{Controller, ControllerConfig};
 use pam_core::{blob, Branch, Coeffs, Params};
-use pam_lab::fit::{fit, FitConfig};
+use pam_lab::identify::fit::{fit, FitConfig};
 use pam_lab::synth::{generate, Protocol};
 
 fn fitted() -> (Params, Params) {

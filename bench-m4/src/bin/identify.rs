@@ -19,9 +19,9 @@
 //! identified from the training samples only; errors are reported on the
 //! held-out samples.
 //!
-//! * pam-core, paper model: `pam_lab::fit::fit` (Levenberg–Marquardt on the
+//! * pam-core, paper model: `pam_lab::identify::fit::fit` (Levenberg–Marquardt on the
 //!   training part, same split), then pam-core's `Tracker` + branch inverse
-//!   driven by pressure (`pam_lab::simulate::simulate`).
+//!   driven by pressure (`pam_lab::evaluate::simulate::simulate`).
 //! * pam-core + non-local memory: the same parameters in
 //!   `pam_core::Simulator` with `NonLocalMemory`; its `shape` chosen on the
 //!   training samples from a grid.
@@ -47,9 +47,9 @@ use nalgebra::{DMatrix, DVector};
 use pam_core::effects::{Effects, NonLocalMemory};
 use pam_core::Simulator;
 use pam_core::{Coeffs, Params, TrackerConfig};
-use pam_lab::data::Sample;
-use pam_lab::fit::{heldout_mask, FitConfig, Holdout};
-use pam_lab::split::{split_branches, SplitConfig};
+use pam_lab::identify::fit::{heldout_mask, FitConfig, Holdout};
+use pam_lab::record::split::{split_branches, SplitConfig};
+use pam_lab::record::Sample;
 
 /// Seed of the characterisation run (sensor noise only).
 const SEED: u64 = 1;
@@ -408,10 +408,13 @@ fn main() {
         holdout,
         ..FitConfig::default()
     };
-    let (params, pam_source) = match pam_lab::fit::fit(&record, &cfg) {
+    let (params, pam_source) = match pam_lab::identify::fit::fit(&record, &cfg) {
         Ok(report) => {
             assert_eq!(report.heldout, heldout, "pam-lab held out the same samples");
-            (report.params, "`pam_lab::fit::fit` on the training cycles")
+            (
+                report.params,
+                "`pam_lab::identify::fit::fit` on the training cycles",
+            )
         }
         Err(e) => {
             eprintln!("pam-lab fit failed ({e}); using Params::DEFAULT");
@@ -419,7 +422,7 @@ fn main() {
         }
     };
     let coeffs = Coeffs::new(params).expect("pam-lab returns valid parameters");
-    let sim = pam_lab::simulate::simulate(
+    let sim = pam_lab::evaluate::simulate::simulate(
         &coeffs,
         &pam_core::Effects::NONE,
         TrackerConfig::DEFAULT_PRESSURE,

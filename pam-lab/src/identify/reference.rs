@@ -14,7 +14,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use crate::data::Sample;
+use crate::record::Sample;
 
 /// Polynomial degree in contraction.
 pub const DEGREE_CONTRACTION: usize = 4;

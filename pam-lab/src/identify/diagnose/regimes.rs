@@ -2,7 +2,7 @@
 
 use pam_core::{Branch, Coeffs, Tracker, TrackerConfig};
 
-use crate::data::Sample;
+use crate::record::Sample;
 
 /// Where the muscle turned within a run `a..=b` of samples whose pressure
 /// stays within `band` of a sweep's extreme: at a turn (a peak of a ramp,
@@ -265,7 +265,7 @@ fn pressure_motion(samples: &[Sample]) -> PressureMotion {
 /// after a step, the fastest ramp); `after_inner_reversal` is left empty
 /// (all false): it needs the model's tracker, see [`regimes`]. Known before
 /// any fit, so the hold-out can make sure each of them is held out too
-/// ([`crate::split::cover_regime`]).
+/// ([`crate::record::split::cover_regime`]).
 pub fn pressure_regimes(samples: &[Sample]) -> Regimes {
     pressure_regimes_of(samples, &pressure_motion(samples))
 }

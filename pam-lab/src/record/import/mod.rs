@@ -21,7 +21,7 @@ pub mod mapping;
 use std::fmt;
 use std::path::Path;
 
-use crate::data::{self, num, Sample, MAX_BYTES, MAX_ROWS};
+use crate::record::{self, num, Sample, MAX_BYTES, MAX_ROWS};
 use mapping::{unit_factor, Column, Mapping, RecordSpec};
 
 /// A refused input: where and why.
@@ -391,7 +391,7 @@ fn import_record(
                 pressure_mpa,
                 contraction,
             };
-            if let Err((column, v, allowed)) = data::check_physical(&s) {
+            if let Err((column, v, allowed)) = record::check_physical(&s) {
                 // Name the logger's column (or the mapping's held value).
                 let (label, fix) = match (column, &source) {
                     ("load_n", _) => (Some(load.label.clone()), "the load column's unit"),

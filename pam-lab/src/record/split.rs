@@ -24,7 +24,7 @@
 
 use pam_core::Branch;
 
-use crate::data::{noise_std, Sample};
+use crate::record::{noise_std, Sample};
 
 /// Tuning of the split; `None` fields are derived from the data.
 #[derive(Clone, Copy, Debug, PartialEq)]

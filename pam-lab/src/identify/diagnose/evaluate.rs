@@ -4,8 +4,8 @@ use pam_core::{Branch, Coeffs, Effects, TrackerConfig};
 use serde::Serialize;
 
 use super::regimes::Regimes;
-use crate::data::Sample;
-use crate::stats::rms_where;
+use crate::evaluate::errors::rms_where;
+use crate::record::Sample;
 
 /// Simulate the model (base `coeffs` plus `effects`) over `samples` from the
 /// measured pressure and load, on the given branches (see
@@ -18,7 +18,7 @@ pub fn simulate(
     branches: &[Branch],
 ) -> Vec<f64> {
     let mut out = vec![f64::NAN; samples.len()];
-    crate::simulate::run_record(
+    crate::evaluate::simulate::run_record(
         coeffs,
         &effects,
         tracker,

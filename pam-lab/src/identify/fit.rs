@@ -54,10 +54,10 @@ use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use pam_core::{Branch, Coeffs, LoadFamily, Params};
 use serde::Serialize;
 
-use crate::data::{DataError, DataErrorKind, Record, Sample};
-use crate::reference::ReferenceSurface;
-use crate::split::{split_branches, Split, SplitConfig};
-use crate::stats::{error_table, load_bin, ErrorTable};
+use crate::evaluate::errors::{error_table, load_bin, ErrorTable};
+use crate::identify::reference::ReferenceSurface;
+use crate::record::split::{split_branches, Split, SplitConfig};
+use crate::record::{DataError, DataErrorKind, Record, Sample};
 
 /// Which part of the record is held out of the fit.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -673,7 +673,7 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
             .enumerate()
             .map(|(j, v)| 1e-7 * v.abs().max(param_scale(j, &self.fixed)))
             .collect();
-        Some(crate::lsq::forward_difference_jacobian(
+        Some(crate::identify::lsq::forward_difference_jacobian(
             &theta,
             &steps,
             self.n_residuals(),
@@ -730,7 +730,7 @@ fn holding_share(v: &[f64], lag: usize, tol: f64) -> f64 {
     if v.len() <= lag {
         return 1.0;
     }
-    let s = crate::split::moving_average(v, 9);
+    let s = crate::record::split::moving_average(v, 9);
     let held = s
         .windows(lag + 1)
         .filter(|w| (w[lag] - w[0]).abs() <= tol)
@@ -751,7 +751,7 @@ pub fn detect_test(samples: &[Sample]) -> TestKind {
         q(0.99) - q(0.01)
     };
     let lag = (samples.len() / 100).clamp(5, 1000);
-    let tol = |v: &[f64]| (0.01 * range(v)).max(3.0 * crate::data::noise_std(v.iter().copied()));
+    let tol = |v: &[f64]| (0.01 * range(v)).max(3.0 * crate::record::noise_std(v.iter().copied()));
     let (hx, hl) = (
         holding_share(&x, lag, tol(&x)),
         holding_share(&l, lag, tol(&l)),
@@ -774,7 +774,7 @@ pub fn detect_test(samples: &[Sample]) -> TestKind {
 pub fn slack_mask(samples: &[Sample], test: TestKind) -> Vec<bool> {
     if test == TestKind::Isometric {
         let max_load = samples.iter().map(|s| s.load_n).fold(0.0, f64::max);
-        let noise = crate::data::noise_std(samples.iter().map(|s| s.load_n));
+        let noise = crate::record::noise_std(samples.iter().map(|s| s.load_n));
         let floor = (5.0 * noise).max(0.01 * max_load);
         samples.iter().map(|s| s.load_n <= floor).collect()
     } else {
@@ -823,14 +823,14 @@ fn check_against_record(
                      --pmax out to measure it",
                     100.0 * above as f64 / samples.len() as f64,
                     record.source,
-                    crate::data::num(top)
+                    crate::record::num(top)
                 ),
             });
         }
     }
     let test = cfg.test.unwrap_or(detected);
     if test == TestKind::Isotonic {
-        let r = crate::data::correlation(samples, |s| s.pressure_mpa, |s| s.contraction);
+        let r = crate::record::correlation(samples, |s| s.pressure_mpa, |s| s.contraction);
         if r < -0.5 {
             return Err(FitError::Data(DataError {
                 file: record.source.clone(),
@@ -879,7 +879,7 @@ pub fn fit_with_progress(
     // Channels that must vary: time, pressure, contraction.
     let spread = |f: &dyn Fn(&Sample) -> f64| {
         let v: Vec<f64> = samples.iter().map(f).collect();
-        let noise = crate::data::noise_std(v.iter().copied());
+        let noise = crate::record::noise_std(v.iter().copied());
         let q = |p| quantile(v.clone(), p).unwrap_or(0.0);
         (q(0.99) - q(0.01), noise)
     };
@@ -932,7 +932,7 @@ pub fn fit_with_progress(
         Some(p) => (p, PmaxSource::Given),
         None => {
             let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
-            let ps = crate::split::moving_average(&p, 9);
+            let ps = crate::record::split::moving_average(&p, 9);
             (ps.iter().copied().fold(0.0, f64::max), PmaxSource::Measured)
         }
     };

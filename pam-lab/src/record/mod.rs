@@ -13,6 +13,9 @@
 //! Every defect is a [`DataError`] naming the file, the line (1-based, as an
 //! editor shows it) and the column.
 
+pub mod import;
+pub mod split;
+
 use std::fmt;
 use std::io::Read;
 use std::path::Path;

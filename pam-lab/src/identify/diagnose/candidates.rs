@@ -324,7 +324,7 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for CandidateProblem<'_, '_> {
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         let steps: Vec<f64> = self.theta.iter().map(|t| 1e-3 * (1.0 + t.abs())).collect();
-        let jac = crate::lsq::forward_difference_jacobian(
+        let jac = crate::identify::lsq::forward_difference_jacobian(
             self.theta.as_slice(),
             &steps,
             self.setup.train_idx.len(),
@@ -455,7 +455,7 @@ pub(super) fn evaluate_candidate(
     // samples. Both models are compared over the shorter of the two
     // lengths (one count for both, as a BIC needs).
     let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| res[i]).collect();
-    let cand_corr = crate::stats::correlation_length(
+    let cand_corr = crate::evaluate::errors::correlation_length(
         &train_res,
         setup.noise_contraction,
         2 * super::PRESSURE_MEDIAN_HALF_WIDTH + 1,

@@ -15,7 +15,7 @@
 
 use pam_core::{Branch, Coeffs, Effects, Simulator, TrackerConfig};
 
-use crate::data::Sample;
+use crate::record::Sample;
 
 /// One simulated sample.
 #[derive(Clone, Copy, Debug, PartialEq)]

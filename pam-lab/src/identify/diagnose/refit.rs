@@ -139,8 +139,11 @@ pub(super) fn refit_base(
             .collect();
         // A column already held is zeroed below: not simulated.
         let skip = held.clone();
-        let mut jac =
-            crate::lsq::forward_difference_jacobian(&vec![0.0; m], &h, r.len(), &|d, out| {
+        let mut jac = crate::identify::lsq::forward_difference_jacobian(
+            &vec![0.0; m],
+            &h,
+            r.len(),
+            &|d, out| {
                 if d.iter().position(|v| *v != 0.0).is_some_and(|k| skip[k]) {
                     out.fill(0.0);
                     return;
@@ -149,7 +152,8 @@ pub(super) fn refit_base(
                     Some(v) => out.copy_from_slice(v.as_slice()),
                     None => out.fill(f64::NAN),
                 }
-            });
+            },
+        );
         // `Pmax` on a bound whose cost falls further out is held there (the
         // bound is active): solved free, the other parameters' step would
         // count on a move of `Pmax` that the projection then takes back.
@@ -226,8 +230,8 @@ pub(super) fn refit_base(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::data::Sample;
-    use crate::diagnose::evaluate::simulate;
+    use crate::identify::diagnose::evaluate::simulate;
+    use crate::record::Sample;
     use pam_core::{Branch, TrackerConfig};
 
     /// `p` with refit field `k` pushed to the edge of the valid parameters

@@ -42,9 +42,9 @@ pub struct DiagnoseReport {
     /// The same after the additions.
     pub rms_after: f64,
     /// Measurement noise estimated from the record
-    /// ([`crate::stats::noise_floor`]); `contraction` is the floor no model
+    /// ([`crate::evaluate::errors::noise_floor`]); `contraction` is the floor no model
     /// can go below on held-out data.
-    pub noise: crate::stats::NoiseFloor,
+    pub noise: crate::evaluate::errors::NoiseFloor,
     /// Held-out samples at loads beyond the training loads (their error is
     /// partly the load family's extrapolation).
     pub extrapolated_samples: usize,
@@ -100,7 +100,7 @@ pub struct DiagnoseReport {
     /// ([`super::model_warnings`]), one sentence each.
     pub warnings: Vec<String>,
     /// Segments the hold-out moved to the held-out part so that a regime
-    /// the pressure decides is held out too ([`crate::split::cover_regime`]).
+    /// the pressure decides is held out too ([`crate::record::split::cover_regime`]).
     pub holdout_cover: Vec<HoldoutCover>,
     /// Predicted contraction of the base and final models (not serialised).
     #[serde(skip)]

@@ -2,7 +2,7 @@
 //! disagree, name the missing effect, add it, and show the gap shrink.
 //!
 //! # Workflow
-//! 1. **Split** ([`crate::split::holdout_by_segment`]). The record is cut
+//! 1. **Split** ([`crate::record::split::holdout_by_segment`]). The record is cut
 //!    into segments at every cycle start (the branch split shared with
 //!    `fit`) and every load change; one segment in [`HOLDOUT_EVERY`],
 //!    drawn by a fixed hash, is held out. No assumption about the protocol:
@@ -12,16 +12,16 @@
 //!    ramps, holds after a step) are held out too: where the draw leaves
 //!    one in the training part (under one in `2·HOLDOUT_EVERY` of its
 //!    samples held out), more of its segments are held out
-//!    ([`crate::split::cover_regime`]), or the effect that shows there
+//!    ([`crate::record::split::cover_regime`]), or the effect that shows there
 //!    could not show on held-out data.
 //! 2. **Base model.** The paper's model is fitted on the training part with
-//!    [`crate::fit::fit`], then the whole record is simulated from the
+//!    [`crate::identify::fit::fit`], then the whole record is simulated from the
 //!    measured pressure (through a running median, [`denoise_pressure`]) and
 //!    load with [`pam_core::Simulator`] on branches known with hindsight
 //!    ([`hindsight_branches`]: a turn is a parabola's vertex or a hold's
 //!    end, the measured contraction's jump places the switch), and the
 //!    residual is located by regime ([`Regimes`]).
-//! 3. **Noise floor** ([`crate::stats::noise_floor`]): the measurement noise
+//! 3. **Noise floor** ([`crate::evaluate::errors::noise_floor`]): the measurement noise
 //!    from short-lag differences where the pressure moves slowest; the
 //!    report gives the error above it, `sqrt(rms² − noise²)`, before and
 //!    after, and the share the effects removed.
@@ -68,10 +68,10 @@ mod report;
 
 use pam_core::{Coeffs, Effects, TrackerConfig};
 
-use crate::data::{Record, Sample};
-use crate::fit::{FitConfig, Holdout};
+use crate::identify::fit::{FitConfig, Holdout};
+use crate::record::{Record, Sample};
 
-pub use crate::stats::{correlation_length, NoiseFloor};
+pub use crate::evaluate::errors::{correlation_length, NoiseFloor};
 pub use candidates::{CandidateResult, EffectKind, Signature, RATE_EXPONENTS};
 pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use paths::{PathSummary, PATHS_MAX};
@@ -128,13 +128,13 @@ impl Default for DiagnoseConfig {
 /// creep or a lag.
 pub const PRESSURE_MEDIAN_HALF_WIDTH: usize = 4;
 
-/// `samples` with the pressure through [`crate::split::running_median`] of
+/// `samples` with the pressure through [`crate::record::split::running_median`] of
 /// `2·half + 1` samples.
 pub fn denoise_pressure(samples: &[Sample], half: usize) -> Vec<Sample> {
     let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
     samples
         .iter()
-        .zip(crate::split::running_median(&p, half))
+        .zip(crate::record::split::running_median(&p, half))
         .map(|(s, pm)| Sample {
             pressure_mpa: pm,
             ..*s
@@ -143,7 +143,7 @@ pub fn denoise_pressure(samples: &[Sample], half: usize) -> Vec<Sample> {
 }
 
 /// One in how many segments (cycles, cut at load changes) is held out
-/// ([`crate::split::holdout_by_segment`]).
+/// ([`crate::record::split::holdout_by_segment`]).
 pub const HOLDOUT_EVERY: usize = 3;
 
 /// Why a diagnosis failed.
@@ -151,7 +151,7 @@ pub const HOLDOUT_EVERY: usize = 3;
 pub enum DiagnoseError {
     /// The base fit failed.
     #[error("base fit: {0}")]
-    Fit(#[from] crate::fit::FitError),
+    Fit(#[from] crate::identify::fit::FitError),
     /// Too little data.
     #[error("{0}")]
     Data(String),
@@ -202,12 +202,15 @@ pub fn diagnose_with_progress(
     let denoised = denoise_pressure(samples, PRESSURE_MEDIAN_HALF_WIDTH);
     let samples = &denoised;
     let loads: Vec<f64> = samples.iter().map(|s| s.load_n).collect();
-    let split = crate::split::split_branches(samples, &crate::split::SplitConfig::default());
+    let split = crate::record::split::split_branches(
+        samples,
+        &crate::record::split::SplitConfig::default(),
+    );
     // The regimes the pressure decides are known before the fit: each one
     // that the drawn segments leave (almost) all in training gets held-out
     // segments too, or its candidate could not show on held-out data.
     let paced = pressure_regimes(samples);
-    let (heldout, moved) = crate::split::holdout_by_segment(
+    let (heldout, moved) = crate::record::split::holdout_by_segment(
         &loads,
         &split.cycle,
         HOLDOUT_EVERY,
@@ -221,7 +224,7 @@ pub fn diagnose_with_progress(
             segments_moved,
         })
         .collect();
-    let extrapolated = crate::split::extrapolated(&loads, &heldout);
+    let extrapolated = crate::record::split::extrapolated(&loads, &heldout);
     // The training part keeps the file's line numbers, so that a refusal
     // of the base fit points at the record's own lines.
     let keep = |i: &usize| !heldout[*i];
@@ -242,7 +245,7 @@ pub fn diagnose_with_progress(
         "fitting the paper's model on {} training samples",
         train_record.samples.len()
     ));
-    let fit = crate::fit::fit(&train_record, &fit_cfg)?;
+    let fit = crate::identify::fit::fit(&train_record, &fit_cfg)?;
 
     // The held-out blocks may go beyond the training loads (the examples'
     // random loads reach 350 N, the training blocks 300 N): widen the
@@ -263,12 +266,12 @@ pub fn diagnose_with_progress(
         fit.coeffs
     };
     let tracker = tracker_config(
-        crate::data::noise_std(record.samples.iter().map(|s| s.pressure_mpa)),
-        crate::data::noise_std(record.samples.iter().map(|s| s.load_n)),
+        crate::record::noise_std(record.samples.iter().map(|s| s.pressure_mpa)),
+        crate::record::noise_std(record.samples.iter().map(|s| s.load_n)),
     );
     let train_idx: Vec<usize> = (0..samples.len()).filter(|&i| !heldout[i]).collect();
     let regimes = regimes(samples, &coeffs, tracker);
-    let noise = crate::stats::noise_floor(&record.samples);
+    let noise = crate::evaluate::errors::noise_floor(&record.samples);
     let branches = hindsight_branches(samples, &coeffs, tracker, noise.contraction);
     let mut setup = Setup {
         samples,
@@ -281,8 +284,8 @@ pub fn diagnose_with_progress(
         corr_len: 1.0,
         noise_contraction: noise.contraction,
         pmax_floor_mpa: match fit.pmax_source {
-            crate::fit::PmaxSource::Measured => Some(fit.params.points.max_pressure_mpa),
-            crate::fit::PmaxSource::Given => None,
+            crate::identify::fit::PmaxSource::Measured => Some(fit.params.points.max_pressure_mpa),
+            crate::identify::fit::PmaxSource::Given => None,
         },
         stroke_bin: evaluate::stroke_bins(samples),
     };
@@ -363,9 +366,10 @@ pub fn diagnose_with_progress(
         })
         .unwrap_or_default();
     let heldout_samples = setup.heldout.iter().filter(|h| **h).count();
-    let above_noise_before = crate::stats::above_noise(base_errors.rms_heldout, noise.contraction);
+    let above_noise_before =
+        crate::evaluate::errors::above_noise(base_errors.rms_heldout, noise.contraction);
     let above_noise_after =
-        crate::stats::above_noise(current_errors.rms_heldout, noise.contraction);
+        crate::evaluate::errors::above_noise(current_errors.rms_heldout, noise.contraction);
     let above_noise_removed = if above_noise_before > 0.0 {
         1.0 - above_noise_after / above_noise_before
     } else {

@@ -10,7 +10,7 @@ use anyhow::{bail, Context, Result};
 use pam_core::{blob, Coeffs, Effects, Params};
 use serde::{Deserialize, Serialize};
 
-use crate::stats::ErrorTable;
+use crate::evaluate::errors::ErrorTable;
 
 /// Format tag of the JSON model file.
 pub const FORMAT: &str = "pam-lab model";
@@ -40,13 +40,13 @@ pub struct FitSummary {
     /// Errors on the held-out samples, per load bin and branch.
     pub heldout_errors: Option<ErrorTable>,
     /// The reference surface's RMS pressure error on the same held-out
-    /// samples (`pam_lab::reference`), MPa.
+    /// samples (`pam_lab::identify::reference`), MPa.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference_heldout_rms_mpa: Option<f64>,
     /// The model and the reference surface on a record neither was fitted
     /// to (`--validate`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub validation: Option<crate::fit::Validation>,
+    pub validation: Option<crate::identify::fit::Validation>,
 }
 
 /// The JSON model file. `params` is pam-core's [`Params`], whose keys carry

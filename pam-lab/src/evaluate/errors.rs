@@ -11,7 +11,7 @@ use std::collections::{BTreeMap, HashMap};
 use pam_core::{Branch, Coeffs, LoadModel};
 use serde::{Deserialize, Serialize};
 
-use crate::data::Sample;
+use crate::record::Sample;
 
 /// Error statistics of one group of samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -317,15 +317,15 @@ pub struct NoiseFloor {
 pub fn noise_floor(samples: &[Sample]) -> NoiseFloor {
     let n = samples.len();
     let whole = || NoiseFloor {
-        contraction: crate::data::noise_std(samples.iter().map(|s| s.contraction)),
-        pressure_mpa: crate::data::noise_std(samples.iter().map(|s| s.pressure_mpa)),
+        contraction: crate::record::noise_std(samples.iter().map(|s| s.contraction)),
+        pressure_mpa: crate::record::noise_std(samples.iter().map(|s| s.pressure_mpa)),
         samples: n,
     };
     if n < 40 {
         return whole();
     }
     let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
-    let ps = crate::split::running_median(&p, 4);
+    let ps = crate::record::split::running_median(&p, 4);
     let dt = median_step_s(samples);
     // Rate over ±0.2 s (at least ±2 samples).
     let w = ((0.2 / dt).round() as usize).max(2);

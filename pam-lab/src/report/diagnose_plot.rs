@@ -5,8 +5,8 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::data::Record;
-use crate::diagnose::DiagnoseReport;
+use crate::identify::diagnose::DiagnoseReport;
+use crate::record::Record;
 
 const BASE: RGBColor = RGBColor(200, 40, 40);
 const AFTER: RGBColor = RGBColor(30, 80, 200);
@@ -54,7 +54,7 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
         * 1.1;
     let t0 = s.first().map_or(0.0, |x| x.t_s);
     let t1 = s.last().map_or(1.0, |x| x.t_s).max(t0 + 1e-3);
-    crate::plot::ensure_font();
+    crate::report::plot::ensure_font();
     let root = BitMapBackend::new(path, (1600, 700)).into_drawing_area();
     root.fill(&WHITE)?;
     let title = format!(
@@ -225,7 +225,7 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
         .map(|&i| s[i].pressure_mpa)
         .fold(0.0f64, f64::max)
         * 1.05;
-    crate::plot::ensure_font();
+    crate::report::plot::ensure_font();
     let root = BitMapBackend::new(path, (1600, 730)).into_drawing_area();
     root.fill(&WHITE)?;
     let load = idx.first().map_or(0.0, |&i| s[i].load_n);

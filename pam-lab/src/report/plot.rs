@@ -13,9 +13,9 @@ use anyhow::{anyhow, Result};
 use pam_core::{Branch, Coeffs};
 use plotters::prelude::*;
 
-use crate::data::Record;
-use crate::simulate::SimSample;
-use crate::split::Split;
+use crate::evaluate::simulate::SimSample;
+use crate::record::split::Split;
+use crate::record::Record;
 
 const SIZE: (u32, u32) = (1400, 800);
 /// Width of the legend column beside a chart, pixels: legends never cover data.
@@ -258,7 +258,7 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
 pub fn ensure_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
-        let bytes: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        let bytes: &'static [u8] = include_bytes!("../../assets/DejaVuSans.ttf");
         // The font is a fixed, valid file: registration cannot fail at run time
         // (checked by the test below).
         let _ =
@@ -270,7 +270,7 @@ pub fn ensure_font() {
 mod font_tests {
     #[test]
     fn bundled_font_registers() {
-        let bytes: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        let bytes: &'static [u8] = include_bytes!("../../assets/DejaVuSans.ttf");
         assert!(plotters::style::register_font(
             "sans-serif",
             plotters::style::FontStyle::Normal,

@@ -1,0 +1,6 @@
+//! Evaluation: a model driven over a record ([`simulate`], pam-core's
+//! simulator, the one record simulator) and its errors against the
+//! measurement ([`errors`]: per load and branch, noise floor, correlation).
+
+pub mod errors;
+pub mod simulate;
