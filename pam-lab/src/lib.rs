@@ -10,7 +10,7 @@
 //!    ([`identify::fit`]), the effects it misses ([`identify::diagnose`]),
 //!    the generic surface both are judged against ([`identify::reference`]).
 //! 4. [`export`]: the model file, the coefficient blob, Rust constants.
-//! 5. [`report`]: plots.
+//! 5. Plots of every stage: [`report`].
 //!
 //! [`commands`] runs the stages for the binary's commands and writes their
 //! files all or none ([`output`]); [`synth`] generates test records.
