@@ -233,6 +233,90 @@ impl ConstraintShape {
     }
 }
 
+/// The host path (`f64`): the same map as the `f32` one the chip runs
+/// ([`ConstraintShape::at_load`], [`ConstraintShape::apply`],
+/// [`ShapeInverse::model_contraction`]) in double precision, for an
+/// identification whose finite differences need more than `f32`'s seven
+/// digits. Test `f64_path_agrees_with_the_chip`.
+impl ConstraintShape {
+    /// [`Self::at_load`] `(bulge, tilt, root_shift, end_shift)` at
+    /// `steps = (L − L_min)/ΔL`, scaled back to [`MAX_SHAPE_SLOPE`] as the
+    /// chip's is, and the unscaled sum `|bulge| + |tilt| + |end_shift −
+    /// root_shift|` (for a fit that keeps it inside the limit).
+    pub fn at_steps_f64(&self, steps: f64) -> ([f64; 4], f64) {
+        let steps = if steps.is_finite() { steps } else { 0.0 };
+        let f = f64::from;
+        let b = f(self.bulge) + f(self.bulge_per_step) * steps;
+        let t = f(self.tilt) + f(self.tilt_per_step) * steps;
+        let r = f(self.root_shift)
+            + f(self.root_shift_per_step) * steps
+            + f(self.root_shift_per_step_sq) * steps * steps;
+        let e = f(self.end_shift)
+            + f(self.end_shift_per_step) * steps
+            + f(self.end_shift_per_step_sq) * steps * steps;
+        let sum = b.abs() + t.abs() + (e - r).abs();
+        let limit = f(MAX_SHAPE_SLOPE);
+        let k = if sum > limit && sum.is_finite() {
+            limit / sum
+        } else if sum.is_finite() {
+            1.0
+        } else {
+            0.0
+        };
+        ([b * k, t * k, r * k, e * k], sum)
+    }
+
+    /// The stroke fraction's map and its slope for `(bulge, tilt,
+    /// root_shift, end_shift)` from [`Self::at_steps_f64`].
+    pub fn map_fraction_f64([b, t, r, e]: [f64; 4], u: f64) -> (f64, f64) {
+        let d = e - r;
+        let value = r + u + u * d + u * (1.0 - u) * ((b - t) + 2.0 * t * u);
+        let slope = (1.0 + (b - t) + d) + 2.0 * (3.0 * t - b) * u - 6.0 * t * u * u;
+        (value, slope)
+    }
+
+    /// The stroke fraction `u ∈ [0, 1]` whose map is `target` (clamped to
+    /// the map's ends): a bracketed Newton iteration to `f64` precision.
+    /// With the map's slope at least `1 − MAX_SHAPE_SLOPE` it converges in
+    /// a few steps; at most 60 (then it is a bisection's answer).
+    pub fn inverse_fraction_f64(shape: [f64; 4], target: f64) -> f64 {
+        let (lo_end, _) = Self::map_fraction_f64(shape, 0.0);
+        let (hi_end, _) = Self::map_fraction_f64(shape, 1.0);
+        let target = if target.is_finite() {
+            target.clamp(lo_end.min(hi_end), hi_end.max(lo_end))
+        } else {
+            lo_end
+        };
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        let span = hi_end - lo_end;
+        let mut u = if span > 0.0 {
+            ((target - lo_end) / span).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        for _ in 0..60 {
+            let (f, slope) = Self::map_fraction_f64(shape, u);
+            let f = f - target;
+            if f <= 0.0 {
+                lo = u;
+            } else {
+                hi = u;
+            }
+            let next = u - f / slope;
+            let next = if next >= lo && next <= hi {
+                next
+            } else {
+                0.5 * (lo + hi)
+            };
+            if (next - u).abs() <= 1e-15 {
+                return next;
+            }
+            u = next;
+        }
+        u
+    }
+}
+
 /// A shape ready for its inverse: what [`ConstraintShape::model_contraction`]
 /// computes from the shape alone, done once (a feedforward keeps it per
 /// load, [`ConstraintShape::inverse_at_load`]). With `d = end_shift −
@@ -394,6 +478,49 @@ mod tests {
         }
         eprintln!("worst Newton inverse error: {worst:e} of the stroke");
         assert!(worst <= 1.2e-6, "{worst}");
+    }
+
+    #[test]
+    fn f64_path_agrees_with_the_chip() {
+        let params = Params::DEFAULT;
+        let coeffs = Coeffs::new(params).unwrap();
+        let shape = ConstraintShape {
+            bulge: 0.3,
+            tilt: -0.2,
+            bulge_per_step: 0.05,
+            tilt_per_step: 0.02,
+            root_shift: 0.01,
+            end_shift: 0.03,
+            root_shift_per_step_sq: 0.002,
+            end_shift_per_step_sq: -0.004,
+            ..ConstraintShape::NEUTRAL
+        };
+        for load_n in [params.min_load_n, 150.0, 330.0, params.max_load_n] {
+            let m = coeffs.load_model_clamped(load_n);
+            let steps = f64::from((load_n - params.min_load_n) / params.load_step_n);
+            let (at, _) = shape.at_steps_f64(steps);
+            let chip = shape.at_load(&params, load_n);
+            let want = [chip.bulge, chip.tilt, chip.root_shift, chip.end_shift];
+            for (a, w) in at.iter().zip(want) {
+                assert!((a - f64::from(w)).abs() < 1e-6, "{at:?} {want:?}");
+            }
+            let (r, rx) = (m.root_contraction(), m.max_contraction());
+            for k in 0..=10 {
+                let x = r + (rx - r) * k as f32 / 10.0;
+                let u = f64::from((x - r) / (rx - r));
+                let (mapped, _) = ConstraintShape::map_fraction_f64(at, u);
+                let fwd = f64::from(r) + f64::from(rx - r) * mapped;
+                assert!(
+                    (fwd - f64::from(chip.apply(&m, x))).abs() < 2e-6,
+                    "{load_n} {x}"
+                );
+                let back = ConstraintShape::inverse_fraction_f64(at, mapped);
+                assert!((back - u).abs() < 1e-12, "{back} {u}");
+                let chip_back = chip.inverse_at_load(&params, params.min_load_n);
+                let xm = chip_back.model_contraction(&m, fwd as f32);
+                assert!((f64::from(xm) - f64::from(x)).abs() < 1e-5, "{xm} {x}");
+            }
+        }
     }
 
     fn model() -> LoadModel {

@@ -1,8 +1,122 @@
-//! Least-squares plumbing shared by the fits: the forward-difference
-//! Jacobian, its columns shared between two threads (the machines this
-//! runs on have at least two cores).
+//! Least-squares plumbing shared by the fits: one adapter from a residual
+//! function to the `levenberg-marquardt` crate ([`minimize`]), and the
+//! forward-difference Jacobian, its columns shared between two threads
+//! (the machines this runs on have at least two cores).
 
-use nalgebra::DMatrix;
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A least-squares problem as the fits state it: `m` residuals of a
+/// parameter vector, written by `residuals` (non-finite values are
+/// replaced by 10⁶, so a point where the model breaks is a bad point, not
+/// an abort), and the finite-difference step of each parameter at a point.
+pub struct Residuals<'a> {
+    /// Number of residuals.
+    pub m: usize,
+    /// Writes the residuals at a parameter vector into its `m`-slice.
+    pub residuals: &'a (dyn Fn(&[f64], &mut [f64]) + Sync),
+    /// The forward-difference step of parameter `j` at value `v`.
+    pub step: &'a (dyn Fn(usize, f64) -> f64 + Sync),
+    /// Hears every evaluation: its count and cost `½·Σr²`.
+    pub on_evaluation: &'a (dyn Fn(usize, f64) + Sync),
+}
+
+impl Residuals<'_> {
+    fn eval(&self, theta: &[f64], out: &mut [f64]) {
+        (self.residuals)(theta, out);
+        for v in out.iter_mut() {
+            if !v.is_finite() {
+                *v = 1e6;
+            }
+        }
+    }
+}
+
+/// What [`minimize`] found.
+#[derive(Debug)]
+pub struct Minimum {
+    /// The best point.
+    pub theta: Vec<f64>,
+    /// `½·Σr²` there.
+    pub cost: f64,
+    /// Residual evaluations spent.
+    pub evaluations: usize,
+    /// The optimiser's termination reason.
+    pub termination: TerminationReason,
+}
+
+impl Minimum {
+    /// Whether the result is usable: converged, or out of patience (the
+    /// best point found is still the best point); other terminations are
+    /// numerical failures.
+    pub fn usable(&self) -> bool {
+        self.termination.was_successful()
+            || matches!(self.termination, TerminationReason::LostPatience)
+    }
+}
+
+struct Adapter<'a, 'b> {
+    theta: DVector<f64>,
+    problem: &'b Residuals<'a>,
+    evaluations: AtomicUsize,
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Adapter<'_, '_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        self.theta.copy_from(x);
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.theta.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let mut r = DVector::zeros(self.problem.m);
+        self.problem.eval(self.theta.as_slice(), r.as_mut_slice());
+        let count = 1 + self.evaluations.fetch_add(1, Ordering::Relaxed);
+        (self.problem.on_evaluation)(count, 0.5 * r.norm_squared());
+        Some(r)
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let theta: Vec<f64> = self.theta.iter().copied().collect();
+        let steps: Vec<f64> = theta
+            .iter()
+            .enumerate()
+            .map(|(j, &v)| (self.problem.step)(j, v))
+            .collect();
+        Some(forward_difference_jacobian(
+            &theta,
+            &steps,
+            self.problem.m,
+            &|t, out| self.problem.eval(t, out),
+        ))
+    }
+}
+
+/// Levenberg–Marquardt from `theta0` with the given patience (the crate's
+/// limit on evaluations, a multiple of the parameter count).
+pub fn minimize(problem: &Residuals<'_>, theta0: &[f64], patience: usize) -> Minimum {
+    let adapter = Adapter {
+        theta: DVector::from_column_slice(theta0),
+        problem,
+        evaluations: AtomicUsize::new(0),
+    };
+    let (adapter, report) = LevenbergMarquardt::new()
+        .with_patience(patience)
+        .minimize(adapter);
+    Minimum {
+        theta: adapter.theta.iter().copied().collect(),
+        cost: report.objective_function,
+        evaluations: adapter.evaluations.load(Ordering::Relaxed),
+        termination: report.termination,
+    }
+}
 
 /// Forward-difference Jacobian of `residuals` (which writes `m` residuals
 /// for a parameter vector) at `theta`, with step `steps[j]` for parameter

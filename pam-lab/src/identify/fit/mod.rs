@@ -62,12 +62,11 @@ pub use config::{heldout_mask, FitConfig, FitError, Holdout, Progress};
 pub use report::{validate, FitReport, PmaxSource, ShapeFit, Validation};
 pub use test_kind::{detect_test, slack_mask, TestKind};
 
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use pam_core::{Branch, Coeffs, LoadFamily, Params};
 use serde::Serialize;
 
 use crate::evaluate::errors::{error_table, load_bin, ErrorTable};
+use crate::identify::lsq;
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::{split_branches, Split, SplitConfig};
 use crate::record::{DataError, DataErrorKind, Record, Sample};
@@ -334,34 +333,30 @@ pub fn fit_with_progress(
 
     progress(Progress::Stage("least squares"));
     let problem = Problem {
-        theta: DVector::from_column_slice(&theta0),
         anchor,
         data: &train,
         fixed,
         penalty_weight: (train.len() as f64).sqrt(),
-        evaluations: Default::default(),
-        progress,
     };
-    let (problem, report) = LevenbergMarquardt::new()
-        .with_patience(cfg.patience)
-        .minimize(problem);
-    let evaluations = problem
-        .evaluations
-        .load(std::sync::atomic::Ordering::Relaxed);
-    // Running out of patience still leaves the best point found; other
-    // unsuccessful terminations are numerical failures.
-    if !report.termination.was_successful()
-        && !matches!(
-            report.termination,
-            levenberg_marquardt::TerminationReason::LostPatience
-        )
-    {
+    let on_evaluation = |count, cost| progress(Progress::Evaluation { count, cost });
+    let minimum = lsq::minimize(
+        &lsq::Residuals {
+            m: problem.n_residuals(),
+            residuals: &|t, out| problem.residuals_at(t, out),
+            step: &|j, v| 1e-7 * v.abs().max(param_scale(j, &fixed)),
+            on_evaluation: &on_evaluation,
+        },
+        &theta0,
+        cfg.patience,
+    );
+    let evaluations = minimum.evaluations;
+    if !minimum.usable() {
         return Err(FitError::Optimiser {
             source_name: record.source.clone(),
-            why: format!("{:?}", report.termination),
+            why: format!("{:?}", minimum.termination),
         });
     }
-    let (theta, was_inside) = project(problem.theta.as_slice(), &anchor, &fixed);
+    let (theta, was_inside) = project(&minimum.theta, &anchor, &fixed);
 
     // The f32 export must pass pam-core's own check; the margin makes that
     // the rule, and where rounding still breaks it, step toward the anchor.
@@ -433,8 +428,8 @@ pub fn fit_with_progress(
         pmax_source,
         holdout: cfg.holdout,
         evaluations,
-        termination: format!("{:?}", report.termination),
-        cost: report.objective_function,
+        termination: format!("{:?}", minimum.termination),
+        cost: minimum.cost,
         initial,
         split,
         test_kind: test,

@@ -37,23 +37,22 @@ impl TrainSet {
     }
 }
 
+/// The paper's model's problem: the training residuals at the feasible
+/// projection of the optimiser's point, and the distance moved.
 pub(super) struct Problem<'a> {
-    pub(super) theta: DVector<f64>,
     pub(super) anchor: [f64; NP],
     pub(super) data: &'a TrainSet,
     pub(super) fixed: Fixed,
     /// Weight of the distance to the feasible set, per parameter scale.
     pub(super) penalty_weight: f64,
-    pub(super) evaluations: std::sync::atomic::AtomicUsize,
-    pub(super) progress: &'a (dyn Fn(Progress) + Sync),
 }
 
 impl Problem<'_> {
-    fn n_residuals(&self) -> usize {
+    pub(super) fn n_residuals(&self) -> usize {
         self.data.len() + NP
     }
 
-    fn residuals_at(&self, theta: &[f64], out: &mut [f64]) {
+    pub(super) fn residuals_at(&self, theta: &[f64], out: &mut [f64]) {
         let (inside, _) = project(theta, &self.anchor, &self.fixed);
         let n = self.data.len();
         self.data
@@ -61,53 +60,6 @@ impl Problem<'_> {
         for j in 0..NP {
             out[n + j] = self.penalty_weight * (theta[j] - inside[j]) / param_scale(j, &self.fixed);
         }
-        for v in out.iter_mut() {
-            if !v.is_finite() {
-                *v = 1e6;
-            }
-        }
-    }
-}
-
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, x: &DVector<f64>) {
-        self.theta.copy_from(x);
-    }
-
-    fn params(&self) -> DVector<f64> {
-        self.theta.clone()
-    }
-
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let mut r = DVector::zeros(self.n_residuals());
-        self.residuals_at(self.theta.as_slice(), r.as_mut_slice());
-        let count = 1 + self
-            .evaluations
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        (self.progress)(Progress::Evaluation {
-            count,
-            cost: 0.5 * r.norm_squared(),
-        });
-        Some(r)
-    }
-
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let theta: Vec<f64> = self.theta.iter().copied().collect();
-        let steps: Vec<f64> = theta
-            .iter()
-            .enumerate()
-            .map(|(j, v)| 1e-7 * v.abs().max(param_scale(j, &self.fixed)))
-            .collect();
-        Some(crate::identify::lsq::forward_difference_jacobian(
-            &theta,
-            &steps,
-            self.n_residuals(),
-            &|t, out| self.residuals_at(t, out),
-        ))
     }
 }
 
