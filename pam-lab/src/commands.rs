@@ -134,7 +134,7 @@ pub fn fit_and_validate(
     let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);
     let files = model_file::model_files(
         &report.params,
-        &pam_core::Effects::NONE,
+        &report.effects(),
         Some(summary),
         &origin,
     )

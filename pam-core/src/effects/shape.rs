@@ -24,7 +24,9 @@
 //! `MAX_SHAPE_SLOPE`, so the map always has an inverse
 //! ([`ConstraintShape::model_contraction`]) for a feedforward.
 
+use crate::branch::Branch;
 use crate::error::Error;
+use crate::load_family::LoadCubic;
 use crate::load_model::LoadModel;
 use crate::math::clamp;
 use crate::params::Params;
@@ -239,23 +241,55 @@ impl ConstraintShape {
 /// identification whose finite differences need more than `f32`'s seven
 /// digits. Test `f64_path_agrees_with_the_chip`.
 impl ConstraintShape {
-    /// [`Self::at_load`] `(bulge, tilt, root_shift, end_shift)` at
-    /// `steps = (L − L_min)/ΔL`, scaled back to [`MAX_SHAPE_SLOPE`] as the
-    /// chip's is, and the unscaled sum `|bulge| + |tilt| + |end_shift −
+    /// The ten coefficients in field order, as `f64`: what
+    /// [`Self::at_steps_f64`] takes, so that a fit can vary them in double
+    /// precision and round to the `f32` fields once, at the end.
+    pub fn coefficients_f64(&self) -> [f64; 10] {
+        [
+            self.bulge,
+            self.tilt,
+            self.bulge_per_step,
+            self.tilt_per_step,
+            self.root_shift,
+            self.end_shift,
+            self.root_shift_per_step,
+            self.end_shift_per_step,
+            self.root_shift_per_step_sq,
+            self.end_shift_per_step_sq,
+        ]
+        .map(f64::from)
+    }
+
+    /// The shape with these coefficients (field order, rounded to `f32`).
+    pub fn from_coefficients_f64(c: [f64; 10]) -> ConstraintShape {
+        let c = c.map(|v| v as f32);
+        ConstraintShape {
+            bulge: c[0],
+            tilt: c[1],
+            bulge_per_step: c[2],
+            tilt_per_step: c[3],
+            root_shift: c[4],
+            end_shift: c[5],
+            root_shift_per_step: c[6],
+            end_shift_per_step: c[7],
+            root_shift_per_step_sq: c[8],
+            end_shift_per_step_sq: c[9],
+        }
+    }
+
+    /// [`Self::at_load`] of the shape with coefficients `c`
+    /// ([`Self::coefficients_f64`]): `(bulge, tilt, root_shift, end_shift)`
+    /// at `steps = (L − L_min)/ΔL`, scaled back to [`MAX_SHAPE_SLOPE`] as
+    /// the chip's is, and the unscaled sum `|bulge| + |tilt| + |end_shift −
     /// root_shift|` (for a fit that keeps it inside the limit).
-    pub fn at_steps_f64(&self, steps: f64) -> ([f64; 4], f64) {
+    pub fn at_steps_f64(c: [f64; 10], steps: f64) -> ([f64; 4], f64) {
         let steps = if steps.is_finite() { steps } else { 0.0 };
-        let f = f64::from;
-        let b = f(self.bulge) + f(self.bulge_per_step) * steps;
-        let t = f(self.tilt) + f(self.tilt_per_step) * steps;
-        let r = f(self.root_shift)
-            + f(self.root_shift_per_step) * steps
-            + f(self.root_shift_per_step_sq) * steps * steps;
-        let e = f(self.end_shift)
-            + f(self.end_shift_per_step) * steps
-            + f(self.end_shift_per_step_sq) * steps * steps;
+        let b = c[0] + c[2] * steps;
+        let t = c[1] + c[3] * steps;
+        let r = c[4] + c[6] * steps + c[8] * steps * steps;
+        let e = c[5] + c[7] * steps + c[9] * steps * steps;
         let sum = b.abs() + t.abs() + (e - r).abs();
-        let limit = f(MAX_SHAPE_SLOPE);
+        let limit = f64::from(MAX_SHAPE_SLOPE);
         let k = if sum > limit && sum.is_finite() {
             limit / sum
         } else if sum.is_finite() {
@@ -264,6 +298,29 @@ impl ConstraintShape {
             0.0
         };
         ([b * k, t * k, r * k, e * k], sum)
+    }
+
+    /// The model's pressure with the shape `at` ([`Self::at_steps_f64`])
+    /// at the muscle's `contraction` on `branch`, and its slope along the
+    /// muscle's contraction: what the feedforward computes (the contraction
+    /// held to the stroke, the shape's inverse, eqs. 21–26 on the branch),
+    /// in `f64`.
+    pub fn pressure_and_slope_f64(
+        at: [f64; 4],
+        model: &LoadCubic,
+        contraction: f64,
+        branch: Branch,
+    ) -> (f64, f64) {
+        let (r, rx) = (model.cubic.root, model.max_contraction);
+        let s = rx - r;
+        if !(s > 0.0) {
+            return model.pressure_and_slope(contraction, branch, 1.0);
+        }
+        let target = ((contraction - r) / s).clamp(0.0, 1.0);
+        let u = Self::inverse_fraction_f64(at, target);
+        let (_, map_slope) = Self::map_fraction_f64(at, u);
+        let (p, slope) = model.pressure_and_slope(r + s * u, branch, 1.0);
+        (p, slope / map_slope.max(1e-6))
     }
 
     /// The stroke fraction's map and its slope for `(bulge, tilt,
@@ -498,7 +555,7 @@ mod tests {
         for load_n in [params.min_load_n, 150.0, 330.0, params.max_load_n] {
             let m = coeffs.load_model_clamped(load_n);
             let steps = f64::from((load_n - params.min_load_n) / params.load_step_n);
-            let (at, _) = shape.at_steps_f64(steps);
+            let (at, _) = ConstraintShape::at_steps_f64(shape.coefficients_f64(), steps);
             let chip = shape.at_load(&params, load_n);
             let want = [chip.bulge, chip.tilt, chip.root_shift, chip.end_shift];
             for (a, w) in at.iter().zip(want) {

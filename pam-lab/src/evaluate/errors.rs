@@ -8,6 +8,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 
+use pam_core::effects::{ConstraintShape, ShapeInverse};
 use pam_core::{Branch, Coeffs, LoadModel};
 use serde::{Deserialize, Serialize};
 
@@ -110,16 +111,21 @@ impl<'c> ModelCache<'c> {
     }
 }
 
-/// Errors of `coeffs` on the samples `i` with `branch[i]` labelled and
-/// `include(i)` true.
+/// Errors of `coeffs` (with the static `shape` correction, when given) on
+/// the samples `i` with `branch[i]` labelled and `include(i)` true. The
+/// shape is evaluated as the chip evaluates it: its inverse at the load for
+/// the pressure at the measured contraction (the feedforward's direction),
+/// its map for the contraction at the measured pressure.
 pub fn error_table(
     coeffs: &Coeffs,
+    shape: Option<&ConstraintShape>,
     samples: &[Sample],
     branch: &[Option<Branch>],
     include: impl Fn(usize) -> bool,
     load_bin_n: f64,
 ) -> ErrorTable {
     let mut cache = ModelCache::new(coeffs);
+    let mut shapes: HashMap<u32, ShapeInverse> = HashMap::new();
     let mut groups: BTreeMap<(i64, u8), Acc> = BTreeMap::new();
     let mut total = Acc::default();
     for (i, s) in samples.iter().enumerate() {
@@ -129,9 +135,31 @@ pub fn error_table(
         if !include(i) {
             continue;
         }
-        let m = cache.get(s.load_n as f32);
-        let ep = f64::from(m.pressure_mpa(s.contraction as f32, br)) - s.pressure_mpa;
-        let ex = f64::from(m.contraction(s.pressure_mpa as f32, br)) - s.contraction;
+        let load = s.load_n as f32;
+        let m = cache.get(load);
+        let (x_model, x_of) = match shape {
+            Some(shape) => {
+                let params = coeffs.params();
+                let load = load.clamp(params.min_load_n, params.max_load_n);
+                let inverse = *shapes
+                    .entry(load.to_bits())
+                    .or_insert_with(|| shape.inverse_at_load(params, load));
+                // As the feedforward: the contraction held to the model's
+                // stroke, then the shape's inverse.
+                let x = (s.contraction as f32).clamp(m.root_contraction(), m.max_contraction());
+                let x_model = inverse.model_contraction(m, x);
+                let x = inverse
+                    .shape()
+                    .apply(m, m.contraction(s.pressure_mpa as f32, br));
+                (x_model, x)
+            }
+            None => (
+                s.contraction as f32,
+                m.contraction(s.pressure_mpa as f32, br),
+            ),
+        };
+        let ep = f64::from(m.pressure_mpa(x_model, br)) - s.pressure_mpa;
+        let ex = f64::from(x_of) - s.contraction;
         let key = (
             (s.load_n / load_bin_n).round() as i64,
             u8::from(br == Branch::Expansion),
@@ -209,7 +237,7 @@ mod tests {
                 branch.push(Some(br));
             }
         }
-        let t = error_table(&coeffs, &samples, &branch, |_| true, 25.0);
+        let t = error_table(&coeffs, None, &samples, &branch, |_| true, 25.0);
         assert_eq!(t.groups.len(), 2);
         assert_eq!(t.total.samples, 38);
         assert!(t.total.pressure_max_mpa < 3e-4, "{:?}", t.total);
@@ -218,7 +246,7 @@ mod tests {
         for s in &mut samples {
             s.pressure_mpa += 0.01;
         }
-        let t = error_table(&coeffs, &samples, &branch, |i| i % 2 == 0, 25.0);
+        let t = error_table(&coeffs, None, &samples, &branch, |i| i % 2 == 0, 25.0);
         assert_eq!(t.groups.len(), 1);
         assert!((t.total.pressure_rms_mpa - 0.01).abs() < 1e-3);
         assert!(t.to_text().contains("contraction"));

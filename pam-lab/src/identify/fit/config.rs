@@ -70,6 +70,10 @@ pub struct FitConfig {
     pub patience: usize,
     /// The kind of test; `None` detects it from the record.
     pub test: Option<TestKind>,
+    /// Fit pam-core's static-shape correction with the paper's parameters
+    /// where the cubic alone leaves a systematic misfit (above twice the
+    /// noise) and the shape earns its parameters.
+    pub static_shape: bool,
 }
 
 impl Default for FitConfig {
@@ -83,6 +87,7 @@ impl Default for FitConfig {
             min_samples_per_group: 50,
             patience: 100,
             test: None,
+            static_shape: true,
         }
     }
 }

@@ -54,6 +54,7 @@ mod feasible_set;
 mod initial_guess;
 mod problem;
 mod report;
+mod static_shape;
 mod test_kind;
 #[cfg(test)]
 mod tests;
@@ -383,17 +384,36 @@ pub fn fit_with_progress(
         });
     };
 
+    // The static shape, where the cubic leaves a systematic misfit.
+    let first_misfit = systematic_misfit(&train, &family(&theta, &fixed), None, bin);
+    let mut evaluations = evaluations;
+    let mut stage = None;
+    if cfg.static_shape && first_misfit > 2.0 * split.pressure_noise_mpa {
+        progress(Progress::Stage("static shape"));
+        stage = static_shape::fit_static_shape(&train, &fixed, &theta, cfg.patience, progress);
+    }
+    let (theta, params, coeffs, constraint_shape, was_inside) = match stage {
+        Some(st) => {
+            evaluations += st.evaluations;
+            (st.theta.to_vec(), st.params, st.coeffs, Some(st.shape), true)
+        }
+        None => (theta, params, coeffs, None, was_inside),
+    };
+
     progress(Progress::Stage("errors"));
     let fam = family(&theta, &fixed);
     let worst_shape_margin = fam.worst_margin();
+    let shape_coefficients = constraint_shape.map(|s| s.coefficients_f64());
     let shape = ShapeFit {
-        systematic_pressure_rms_mpa: systematic_misfit(&train, &fam, bin),
+        systematic_pressure_rms_mpa: systematic_misfit(&train, &fam, shape_coefficients, bin),
         pressure_noise_mpa: split.pressure_noise_mpa,
         at_shape_limit: !was_inside || worst_shape_margin < 2.0 * SHAPE_MARGIN,
         worst_shape_margin,
+        cubic_only_systematic_pressure_rms_mpa: constraint_shape.map(|_| first_misfit),
     };
     let train_table = error_table(
         &coeffs,
+        constraint_shape.as_ref(),
         samples,
         &split.branch,
         |i| !heldout[i] && !slack[i],
@@ -403,6 +423,7 @@ pub fn fit_with_progress(
     let test_table = if any_heldout {
         error_table(
             &coeffs,
+            constraint_shape.as_ref(),
             samples,
             &split.branch,
             |i| heldout[i] && !slack[i],
@@ -420,6 +441,7 @@ pub fn fit_with_progress(
     Ok(FitReport {
         params,
         coeffs,
+        constraint_shape,
         reference,
         reference_test_rms_mpa,
         heldout,

@@ -20,6 +20,9 @@ pub struct ShapeFit {
     /// Smallest shape margin over the calibrated loads, relative to the mean
     /// slope (see `pam_core::ShapeMargins::relative`).
     pub worst_shape_margin: f64,
+    /// With the static shape: the cubic alone's systematic misfit, MPa
+    /// (the first stage's, before the shape was added).
+    pub cubic_only_systematic_pressure_rms_mpa: Option<f64>,
 }
 
 impl ShapeFit {
@@ -72,6 +75,10 @@ pub struct FitReport {
     pub params: Params,
     /// `Coeffs::new(params)`.
     pub coeffs: Coeffs,
+    /// The static-shape correction fitted with the paper's parameters, when
+    /// the cubic alone left a systematic misfit and the shape earned its
+    /// parameters (`FitConfig::static_shape`).
+    pub constraint_shape: Option<pam_core::effects::ConstraintShape>,
     /// The branch split of the whole record.
     pub split: Split,
     /// Which samples were held out.
@@ -104,6 +111,16 @@ pub struct FitReport {
     pub reference_test_rms_mpa: Option<f64>,
 }
 
+impl FitReport {
+    /// The effects the fitted model carries: the static shape, when fitted.
+    pub fn effects(&self) -> pam_core::Effects {
+        pam_core::Effects {
+            shape: self.constraint_shape,
+            ..pam_core::Effects::NONE
+        }
+    }
+}
+
 /// A fitted model and its reference surface on a record neither was
 /// fitted to (`pam-lab fit --validate`).
 #[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
@@ -126,6 +143,7 @@ pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validat
     let include = |i: usize| split.branch[i].is_some() && !slack[i];
     let model = error_table(
         &report.coeffs,
+        report.constraint_shape.as_ref(),
         samples,
         &split.branch,
         |i| !slack[i],
@@ -144,14 +162,25 @@ pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validat
 
 /// RMS of the mean pressure residual per (load bin, branch, 1/20 of the
 /// stroke) cell, weighted by the cell's samples.
-pub(super) fn systematic_misfit(train: &TrainSet, fam: &LoadFamily, bin: f64) -> f64 {
+pub(super) fn systematic_misfit(
+    train: &TrainSet,
+    fam: &LoadFamily,
+    shape: Option<[f64; 10]>,
+    bin: f64,
+) -> f64 {
     let mut cells: std::collections::HashMap<(i64, bool, i64), (f64, usize)> = Default::default();
     for &(load, start, end) in &train.runs {
         let m = fam.at_load(load);
         let stroke = (m.max_contraction - m.cubic.root).max(1e-6);
+        let steps = (load.clamp(fam.min_load_n, fam.max_load_n) - fam.min_load_n) / fam.load_step_n;
+        let at = shape.map(|c| pam_core::effects::ConstraintShape::at_steps_f64(c, steps).0);
         for i in start..end {
             let (x, br) = (train.x[i], train.branch[i]);
-            let r = m.pressure_mpa(x, br) - train.p[i];
+            let p = match at {
+                Some(at) => pam_core::effects::ConstraintShape::pressure_and_slope_f64(at, &m, x, br).0,
+                None => m.pressure_mpa(x, br),
+            };
+            let r = p - train.p[i];
             let key = (
                 (load / bin).round() as i64,
                 br == Branch::Expansion,
