@@ -178,6 +178,7 @@ impl<'a> Floats<'a> {
                 end_shift_per_step: self.near(0.01, 2.0),
                 root_shift_per_step_sq: self.near(0.01, 2.0),
                 end_shift_per_step_sq: self.near(0.01, 2.0),
+                ..ConstraintShape::NEUTRAL
             }),
         }
     }

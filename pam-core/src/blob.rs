@@ -34,6 +34,17 @@
 //! | 128 | 24 | constraint shape: `root_shift`, `end_shift`, `root_shift_per_step`, `end_shift_per_step`, `root_shift_per_step_sq`, `end_shift_per_step_sq` |
 //! | 152 | 4 | CRC-32 of bytes 0..152 |
 //!
+//! # Version 3: a constraint shape with its stroke table
+//!
+//! Version 2's layout with the payload extended by the shape's stroke table
+//! ([`crate::effects::shape::StrokeTable`]: 28 `f32` knots, load by load),
+//! [`BLOB_V3_LEN`] bytes: bytes 0..152 as version 2 (version field 3,
+//! payload length [`PAYLOAD_V3_LEN`]), 152..264 the knots, 264..268 the
+//! CRC-32 of bytes 0..264. Written only for a shape whose table is not the
+//! identity ([`encode_model`] picks the version), so every model has one
+//! encoding; a version-3 blob without a shape or with the identity table is
+//! refused.
+//!
 //! An effect whose flag is clear has its fields written as zeros, and they
 //! must be zero to decode (one encoding per model). [`decode_model`] reads
 //! both versions (version 1: no effects), checks framing and CRC and
@@ -41,6 +52,8 @@
 //! effect refuses the blob (the firmware runs the memory only).
 
 use crate::coeffs::Coeffs;
+use crate::effects::shape::table::{TABLE_KNOTS, TABLE_LOADS};
+use crate::effects::shape::StrokeTable;
 use crate::effects::{
     ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
 };
@@ -73,8 +86,16 @@ pub const EFFECT_FIELDS: usize = 21;
 pub const PAYLOAD_V2_LEN: usize = 4 * PAYLOAD_FIELDS + 4 + 4 * EFFECT_FIELDS;
 /// Version-2 blob length, bytes.
 pub const BLOB_V2_LEN: usize = 8 + PAYLOAD_V2_LEN + 4;
+/// Format version 3 (version 2 and the shape's stroke table).
+pub const BLOB_VERSION_V3: u16 = 3;
+/// `f32` fields of the stroke table in a version-3 payload.
+pub const TABLE_FIELDS: usize = TABLE_LOADS * TABLE_KNOTS;
+/// Version-3 payload length, bytes.
+pub const PAYLOAD_V3_LEN: usize = PAYLOAD_V2_LEN + 4 * TABLE_FIELDS;
+/// Version-3 blob length, bytes.
+pub const BLOB_V3_LEN: usize = 8 + PAYLOAD_V3_LEN + 4;
 /// The longest blob of any version this crate reads, bytes.
-pub const MAX_BLOB_LEN: usize = BLOB_V2_LEN;
+pub const MAX_BLOB_LEN: usize = BLOB_V3_LEN;
 /// Number of `f32` fields in the payload.
 pub const PAYLOAD_FIELDS: usize = Params::FIELD_COUNT;
 /// Payload length, bytes.
@@ -283,31 +304,79 @@ fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> 
             end_shift_per_step: f[18],
             root_shift_per_step_sq: f[19],
             end_shift_per_step_sq: f[20],
+            table: StrokeTable::NEUTRAL,
         }),
     };
     Ok(e)
 }
 
-/// Encode `params` and `effects` in format version 2 (not validated here:
-/// validate with [`Coeffs::new`] and [`Effects::validate`] first).
-pub fn encode_v2(params: &Params, effects: &Effects) -> [u8; BLOB_V2_LEN] {
-    let mut out = [0u8; BLOB_V2_LEN];
+/// Write the version-2 part (header for `version` and `payload_len`,
+/// parameters, flags, effect fields) into `out`; returns where it ends.
+fn write_v2_part(
+    out: &mut [u8],
+    params: &Params,
+    effects: &Effects,
+    version: u16,
+    payload_len: usize,
+) -> usize {
     out[0..4].copy_from_slice(&BLOB_MAGIC);
-    out[4..6].copy_from_slice(&BLOB_VERSION_V2.to_le_bytes());
-    out[6..8].copy_from_slice(&(PAYLOAD_V2_LEN as u16).to_le_bytes());
+    out[4..6].copy_from_slice(&version.to_le_bytes());
+    out[6..8].copy_from_slice(&(payload_len as u16).to_le_bytes());
     let (flags, ef) = effect_fields(effects);
     let p_end = 8 + PAYLOAD_LEN;
     for (chunk, v) in out[8..p_end].chunks_exact_mut(4).zip(fields(params)) {
         chunk.copy_from_slice(&v.to_le_bytes());
     }
     out[p_end..p_end + 4].copy_from_slice(&flags.to_le_bytes());
-    let body = 8 + PAYLOAD_V2_LEN;
-    for (chunk, v) in out[p_end + 4..body].chunks_exact_mut(4).zip(ef) {
+    let end = 8 + PAYLOAD_V2_LEN;
+    for (chunk, v) in out[p_end + 4..end].chunks_exact_mut(4).zip(ef) {
         chunk.copy_from_slice(&v.to_le_bytes());
     }
+    end
+}
+
+/// Encode `params` and `effects` in format version 2 (not validated here:
+/// validate with [`Coeffs::new`] and [`Effects::validate`] first). A shape's
+/// stroke table is not in version 2: [`encode_model`] picks the version.
+pub fn encode_v2(params: &Params, effects: &Effects) -> [u8; BLOB_V2_LEN] {
+    let mut out = [0u8; BLOB_V2_LEN];
+    let body = write_v2_part(&mut out, params, effects, BLOB_VERSION_V2, PAYLOAD_V2_LEN);
     let crc = crc32(&out[..body]);
     out[body..].copy_from_slice(&crc.to_le_bytes());
     out
+}
+
+/// Encode `params` and `effects` in format version 3: version 2 and the
+/// shape's stroke table (identity knots without a shape).
+pub fn encode_v3(params: &Params, effects: &Effects) -> [u8; BLOB_V3_LEN] {
+    let mut out = [0u8; BLOB_V3_LEN];
+    let mut at = write_v2_part(&mut out, params, effects, BLOB_VERSION_V3, PAYLOAD_V3_LEN);
+    let table = effects.shape.map_or(StrokeTable::NEUTRAL, |s| s.table);
+    for v in table.knots.iter().flatten() {
+        out[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        at += 4;
+    }
+    let crc = crc32(&out[..at]);
+    out[at..].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// The blob of a model in the first version that holds it: version 1
+/// without effects, version 2 with effects, version 3 with a shape whose
+/// stroke table is not the identity. The bytes and their length.
+pub fn encode_model(params: &Params, effects: &Effects) -> ([u8; MAX_BLOB_LEN], usize) {
+    let mut out = [0u8; MAX_BLOB_LEN];
+    let len = if *effects == Effects::NONE {
+        out[..BLOB_LEN].copy_from_slice(&encode(params));
+        BLOB_LEN
+    } else if effects.shape.is_some_and(|s| !s.table.is_neutral()) {
+        out[..BLOB_V3_LEN].copy_from_slice(&encode_v3(params, effects));
+        BLOB_V3_LEN
+    } else {
+        out[..BLOB_V2_LEN].copy_from_slice(&encode_v2(params, effects));
+        BLOB_V2_LEN
+    };
+    (out, len)
 }
 
 /// Length of the blob framed at the start of `bytes` (its header's payload
@@ -319,7 +388,7 @@ pub fn framed_len(bytes: &[u8]) -> Option<usize> {
         return None;
     }
     let version = u16::from_le_bytes([head[4], head[5]]);
-    if version != BLOB_VERSION && version != BLOB_VERSION_V2 {
+    if version != BLOB_VERSION && version != BLOB_VERSION_V2 && version != BLOB_VERSION_V3 {
         return None;
     }
     let len = 8 + usize::from(u16::from_le_bytes([head[6], head[7]])) + 4;
@@ -334,8 +403,9 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
     }
     match u16::from_le_bytes([bytes[4], bytes[5]]) {
         BLOB_VERSION => decode_params(bytes).map(|p| (p, Effects::NONE)),
-        BLOB_VERSION_V2 => {
-            checked_body(bytes, PAYLOAD_V2_LEN)?;
+        version @ (BLOB_VERSION_V2 | BLOB_VERSION_V3) => {
+            let v3 = version == BLOB_VERSION_V3;
+            checked_body(bytes, if v3 { PAYLOAD_V3_LEN } else { PAYLOAD_V2_LEN })?;
             let word = |i: usize| [bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]];
             let mut f = [0f32; PAYLOAD_FIELDS];
             for (k, v) in f.iter_mut().enumerate() {
@@ -347,7 +417,24 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
             for (k, v) in ef.iter_mut().enumerate() {
                 *v = f32::from_le_bytes(word(p_end + 4 + 4 * k));
             }
-            Ok((from_fields(&f), effects_from(flags, &ef)?))
+            let mut effects = effects_from(flags, &ef)?;
+            if v3 {
+                let mut table = StrokeTable::NEUTRAL;
+                let mut at = 8 + PAYLOAD_V2_LEN;
+                for v in table.knots.iter_mut().flatten() {
+                    *v = f32::from_le_bytes(word(at));
+                    at += 4;
+                }
+                match effects.shape.as_mut() {
+                    Some(shape) if !table.is_neutral() => shape.table = table,
+                    _ => {
+                        return Err(Error::Blob(
+                            "a version-3 blob without a shape's stroke table (write version 2)",
+                        ))
+                    }
+                }
+            }
+            Ok((from_fields(&f), effects))
         }
         _ => Err(Error::Blob("unsupported version")),
     }
@@ -426,6 +513,70 @@ mod tests {
         );
     }
 
+    fn with_a_table() -> Effects {
+        let mut table = StrokeTable::NEUTRAL;
+        for (i, node) in table.knots.iter_mut().enumerate() {
+            for (j, v) in node.iter_mut().enumerate() {
+                let u = (j + 1) as f32 / 8.0;
+                *v = u + 0.2 * (i as f32 + 1.0) * u * (1.0 - u);
+            }
+        }
+        Effects {
+            shape: Some(ConstraintShape {
+                bulge: 0.1,
+                table,
+                ..ConstraintShape::NEUTRAL
+            }),
+            ..Effects::NONE
+        }
+    }
+
+    #[test]
+    fn encode_model_picks_the_first_version_that_holds_the_model() {
+        let p = Params::DEFAULT;
+        let (b, n) = encode_model(&p, &Effects::NONE);
+        assert_eq!(&b[..n], &encode(&p)[..]);
+        let plain_shape = Effects {
+            shape: Some(ConstraintShape {
+                bulge: 0.1,
+                ..ConstraintShape::NEUTRAL
+            }),
+            ..Effects::NONE
+        };
+        let (b, n) = encode_model(&p, &plain_shape);
+        assert_eq!(&b[..n], &encode_v2(&p, &plain_shape)[..]);
+        let e = with_a_table();
+        let (b, n) = encode_model(&p, &e);
+        assert_eq!(n, BLOB_V3_LEN);
+        let (c, back) = decode_model(&b[..n]).unwrap();
+        assert_eq!((c.params(), back), (&p, e));
+        assert_eq!(framed_len(&b), Some(BLOB_V3_LEN));
+    }
+
+    #[test]
+    fn a_version_3_blob_is_checked_like_the_others() {
+        let p = Params::DEFAULT;
+        let blob = encode_v3(&p, &with_a_table());
+        for i in 0..BLOB_V3_LEN * 8 {
+            let mut b = blob;
+            b[i / 8] ^= 1 << (i % 8);
+            assert!(decode_model(&b).is_err(), "bit {i}");
+        }
+        // The identity table is version 2's: one encoding per model.
+        let plain = Effects {
+            shape: Some(ConstraintShape::NEUTRAL),
+            ..Effects::NONE
+        };
+        assert!(decode_model(&encode_v3(&p, &plain)).is_err());
+        assert!(decode_model(&encode_v3(&p, &Effects::NONE)).is_err());
+        // A falling table is refused by the shape's validation.
+        let mut e = with_a_table();
+        if let Some(s) = e.shape.as_mut() {
+            s.table.knots[1][2] = s.table.knots[1][1];
+        }
+        assert!(decode_model(&encode_v3(&p, &e)).is_err());
+    }
+
     fn with_every_effect() -> Effects {
         Effects {
             memory: Some(NonLocalMemory {
@@ -458,6 +609,7 @@ mod tests {
                 end_shift_per_step: -0.006,
                 root_shift_per_step_sq: 0.003,
                 end_shift_per_step_sq: -0.004,
+                table: StrokeTable::NEUTRAL,
             }),
         }
     }
@@ -542,7 +694,7 @@ mod tests {
             Err(Error::OutOfRange("memory.shape", _))
         ));
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
-        b[4] = 3;
+        b[4] = 9;
         assert_eq!(decode_model(&b), Err(Error::Blob("unsupported version")));
         assert_eq!(framed_len(&b), None);
     }

@@ -42,6 +42,7 @@ fn all_effects() -> Effects {
             end_shift_per_step: -0.01,
             root_shift_per_step_sq: -0.01,
             end_shift_per_step_sq: 0.02,
+            ..ConstraintShape::NEUTRAL
         }),
     }
 }

@@ -132,16 +132,11 @@ pub fn fit_and_validate(
         validation: validated.clone(),
     };
     let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);
-    let files = model_file::model_files(
-        &report.params,
-        &report.effects(),
-        Some(summary),
-        &origin,
-    )
-    .map_err(|e| FitError::Export {
-        source_name: record.source.clone(),
-        why: e.to_string(),
-    })?;
+    let files = model_file::model_files(&report.params, &report.effects(), Some(summary), &origin)
+        .map_err(|e| FitError::Export {
+            source_name: record.source.clone(),
+            why: e.to_string(),
+        })?;
     Ok(FitOutcome {
         report,
         files,

@@ -578,6 +578,7 @@ fn main() -> ! {
             end_shift_per_step: 0.01,
             root_shift_per_step_sq: 0.001,
             end_shift_per_step_sq: -0.001,
+            ..ConstraintShape::NEUTRAL
         }),
         ..Effects::NONE
     };

@@ -171,6 +171,10 @@ impl SafetyConfig {
 }
 
 /// Which feedforward the outer loop adds to its PI term.
+// The model's variant carries its effects (a shape's stroke table is 112
+// bytes); the configuration is made once at boot and read by reference, so
+// its size costs no copies in the control step.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Feedforward {

@@ -44,7 +44,7 @@ pub mod width;
 pub use creep::{Creep, CreepState};
 pub use memory::{NonLocalMemory, Reversal, ReversalStack};
 pub use rate::{RateDependence, RateState};
-pub use shape::{ConstraintShape, ShapeInverse};
+pub use shape::{ConstraintShape, ShapeInverse, StrokeTable};
 pub use width::LoadDependentWidth;
 
 use crate::branch::Branch;

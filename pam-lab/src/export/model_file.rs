@@ -192,13 +192,10 @@ fn no_effects(e: &Effects) -> bool {
 
 /// The coefficient blob of a model: version 1 for the paper's model, so
 /// that firmware built before version 2 still reads it, version 2 with its
-/// effects otherwise.
+/// effects, version 3 with a shape's stroke table (`blob::encode_model`).
 pub fn blob_bytes(params: &Params, effects: &Effects) -> Vec<u8> {
-    if no_effects(effects) {
-        blob::encode(params).to_vec()
-    } else {
-        blob::encode_v2(params, effects).to_vec()
-    }
+    let (bytes, len) = blob::encode_model(params, effects);
+    bytes[..len].to_vec()
 }
 
 /// [`rust_source`] plus, for a model with effects, a constant
@@ -244,7 +241,7 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
     }));
     let shape = opt(effects.shape.map(|c| {
         format!(
-            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n        root_shift: {},\n        end_shift: {},\n        root_shift_per_step: {},\n        end_shift_per_step: {},\n        root_shift_per_step_sq: {},\n        end_shift_per_step_sq: {},\n    }}",
+            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n        root_shift: {},\n        end_shift: {},\n        root_shift_per_step: {},\n        end_shift_per_step: {},\n        root_shift_per_step_sq: {},\n        end_shift_per_step_sq: {},\n        table: {},\n    }}",
             f(c.bulge),
             f(c.tilt),
             f(c.bulge_per_step),
@@ -254,7 +251,21 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
             f(c.root_shift_per_step),
             f(c.end_shift_per_step),
             f(c.root_shift_per_step_sq),
-            f(c.end_shift_per_step_sq)
+            f(c.end_shift_per_step_sq),
+            if c.table.is_neutral() {
+                "pam_core::effects::StrokeTable::NEUTRAL".to_string()
+            } else {
+                let nodes: Vec<String> = c
+                    .table
+                    .knots
+                    .iter()
+                    .map(|k| format!("[{}]", k.map(f).join(", ")))
+                    .collect();
+                format!(
+                    "pam_core::effects::StrokeTable {{\n            knots: [\n                {},\n            ],\n        }}",
+                    nodes.join(",\n                ")
+                )
+            }
         )
     }));
     src.push_str(&format!(

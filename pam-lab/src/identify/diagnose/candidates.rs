@@ -191,6 +191,7 @@ impl EffectKind {
                     end_shift_per_step: (sixth * t(5).tanh()) as f32,
                     root_shift_per_step_sq: (sixth * t(6).tanh()) as f32,
                     end_shift_per_step_sq: (sixth * t(7).tanh()) as f32,
+                    ..ConstraintShape::NEUTRAL
                 })
             }
         }

@@ -387,25 +387,27 @@ pub fn fit_with_progress(
     // The static shape, where the cubic leaves a systematic misfit.
     let first_misfit = systematic_misfit(&train, &family(&theta, &fixed), None, bin);
     let mut evaluations = evaluations;
-    let mut stage = None;
+    let mut constraint_shape = None;
     if cfg.static_shape && first_misfit > 2.0 * split.pressure_noise_mpa {
         progress(Progress::Stage("static shape"));
-        stage = static_shape::fit_static_shape(&train, &fixed, &theta, cfg.patience, progress);
-    }
-    let (theta, params, coeffs, constraint_shape, was_inside) = match stage {
-        Some(st) => {
-            evaluations += st.evaluations;
-            (st.theta.to_vec(), st.params, st.coeffs, Some(st.shape), true)
+        if let Some(stage) =
+            static_shape::fit_static_shape(&train, &fixed, &theta, cfg.patience, progress)
+        {
+            evaluations += stage.evaluations;
+            constraint_shape = Some(stage.shape);
         }
-        None => (theta, params, coeffs, None, was_inside),
-    };
+    }
 
     progress(Progress::Stage("errors"));
     let fam = family(&theta, &fixed);
     let worst_shape_margin = fam.worst_margin();
-    let shape_coefficients = constraint_shape.map(|s| s.coefficients_f64());
     let shape = ShapeFit {
-        systematic_pressure_rms_mpa: systematic_misfit(&train, &fam, shape_coefficients, bin),
+        systematic_pressure_rms_mpa: systematic_misfit(
+            &train,
+            &fam,
+            constraint_shape.as_ref(),
+            bin,
+        ),
         pressure_noise_mpa: split.pressure_noise_mpa,
         at_shape_limit: !was_inside || worst_shape_margin < 2.0 * SHAPE_MARGIN,
         worst_shape_margin,

@@ -165,19 +165,26 @@ pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validat
 pub(super) fn systematic_misfit(
     train: &TrainSet,
     fam: &LoadFamily,
-    shape: Option<[f64; 10]>,
+    shape: Option<&pam_core::effects::ConstraintShape>,
     bin: f64,
 ) -> f64 {
+    use pam_core::effects::shape::table::{at_fraction_f64, TABLE_KNOTS};
+    use pam_core::effects::ConstraintShape;
+    let nodes = shape.map(|s| s.table.knots.map(|k| k.map(f64::from)));
+    let coefficients = shape.map(ConstraintShape::coefficients_f64);
+    let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
     let mut cells: std::collections::HashMap<(i64, bool, i64), (f64, usize)> = Default::default();
     for &(load, start, end) in &train.runs {
         let m = fam.at_load(load);
         let stroke = (m.max_contraction - m.cubic.root).max(1e-6);
         let steps = (load.clamp(fam.min_load_n, fam.max_load_n) - fam.min_load_n) / fam.load_step_n;
-        let at = shape.map(|c| pam_core::effects::ConstraintShape::at_steps_f64(c, steps).0);
+        let at = coefficients.map(|c| ConstraintShape::at_steps_f64(c, steps).0);
+        let k: Option<[f64; TABLE_KNOTS]> =
+            nodes.map(|n| at_fraction_f64(&n, (load - fam.min_load_n) / span));
         for i in start..end {
             let (x, br) = (train.x[i], train.branch[i]);
             let p = match at {
-                Some(at) => pam_core::effects::ConstraintShape::pressure_and_slope_f64(at, &m, x, br).0,
+                Some(at) => ConstraintShape::pressure_and_slope_f64(at, k.as_ref(), &m, x, br).0,
                 None => m.pressure_mpa(x, br),
             };
             let r = p - train.p[i];
