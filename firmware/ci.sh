@@ -6,9 +6,13 @@
 # (firmware/panic-check.sh), then runs the QEMU self-test image (run-pass:
 # exit 0 only when the tracking error stays within the stated bound and the
 # injected fault is caught) and the QEMU image with a corrupt coefficient
-# blob (must be refused at boot), and the QEMU image that panics on purpose
+# blob (must be refused at boot), the QEMU image that panics on purpose
 # with the inlet open (its panic handler must put the valves safe first and
-# exit with code 101). The board controller is built and checked,
+# exit with code 101), and the QEMU images that pend the NMI and an
+# exception without a handler of its own (PendSV) with the inlet open (the
+# shared exception handlers must put the valves safe; exit 0 only then).
+# firmware/vector-check.sh checks that every vector of the board controller
+# reaches those handlers. The board controller is built and checked,
 # never run: QEMU's netduinoplus2 does not emulate the ADCs and timers as the
 # silicon behaves, and CI has no board.
 set -euo pipefail
@@ -45,10 +49,11 @@ cargo fw-clippy-chip
 cargo fw-clippy-selftest
 cargo fw-clippy
 
-echo "== firmware: board controller (stm32f4xx-hal), size budget, panic paths"
+echo "== firmware: board controller (stm32f4xx-hal), size budget, panic paths, vectors"
 cargo fw-build
 size_check "$release/firmware"
 bash firmware/panic-check.sh "$release/firmware" pam_board_control_step
+bash firmware/vector-check.sh "$release/firmware" TIM2
 
 echo "== firmware: board self-test image, size budget, panic paths"
 cargo fw-selftest-build
@@ -121,4 +126,24 @@ if [ "$status" -ne 101 ] || ! grep -q "panic handler: valves inlet duty 0/1000, 
   echo "firmware: the panic did not leave the valves safe with exit code 101 (exit $status)" >&2
   exit 1
 fi
+# A default handler that loops without touching the valves hangs here: the
+# timeout (124) fails the check.
+for fault in nmi unhandled; do
+  case $fault in
+    nmi) line="NMI: valves inlet duty 0/1000, exhaust 1000/1000" ;;
+    unhandled) line="unhandled exception (irqn -2): valves inlet duty 0/1000, exhaust 1000/1000" ;;
+  esac
+  echo "== firmware: QEMU, $fault with the inlet open: valves safe, exit code 0"
+  cargo fw-qemu-build --features "qemu-$fault"
+  set +e
+  out=$(timeout 60 cargo fw-qemu --features "qemu-$fault" 2>&1)
+  status=$?
+  set -e
+  echo "$out" | tail -n 2
+  if [ "$status" -ne 0 ] || ! grep -qF "$line" <<<"$out"; then
+    echo "firmware: the $fault did not leave the valves safe with exit code 0 (exit $status)" >&2
+    exit 1
+  fi
+done
+bash firmware/vector-check.sh "$release/selftest"
 echo "firmware: OK"

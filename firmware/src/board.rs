@@ -23,7 +23,8 @@
 //!   flags, so the image knows a watchdog reset and boots latched.
 //! * Crash: [`valves_safe_now`] drives the valve pins to the safe state as
 //!   plain GPIO outputs, independent of the timer and of any driver state;
-//!   the image's panic and HardFault handlers call it first.
+//!   the image's panic handler and its exception handlers
+//!   ([`crate::crash`]: HardFault, NMI, all others) call it first.
 //!
 //! Initialisation ([`init`]) may panic inside the HAL (its clock
 //! configuration asserts on impossible clock trees); that is before any
@@ -207,18 +208,19 @@ impl core::fmt::Display for BoardError {
 
 /// Drive the valve pins to `safe` at once, as GPIO outputs: inlet (PA8)
 /// low, exhaust (PA9) high for [`SafeState::Exhaust`], both low for
-/// [`SafeState::Hold`]. For the panic and HardFault handlers: it does not
+/// [`SafeState::Hold`]. For the panic and exception handlers: it does not
 /// need the timer, the HAL objects or any lock, only GPIOA, whose clock it
-/// enables. The output level is written before the pins switch from the
+/// enables; so the NMI handler, which may preempt a critical section, can
+/// call it too. The output level is written before the pins switch from the
 /// timer's alternate function to output, so they never glitch open.
 ///
 /// The valves are energise-to-open (wiring table in firmware/README.md):
 /// high is open. Whatever state the program was in, after this call
 /// nothing but a reset changes the pins (the caller never returns).
 pub fn valves_safe_now(safe: SafeState) {
-    // SAFETY: called only from the panic and HardFault handlers, which never
-    // return: no other code runs afterwards that could hold these register
-    // blocks. The writes are single-register read-modify-writes of GPIOA and
+    // SAFETY: called only from the panic and exception handlers, which never
+    // return: the code they interrupted never runs again, so nothing else
+    // uses these register blocks afterwards. The writes are single-register read-modify-writes of GPIOA and
     // RCC's enable bit, valid in any state of the chip.
     #[allow(unsafe_code)]
     let (rcc, gpioa) = unsafe { (pac::RCC::steal(), pac::GPIOA::steal()) };

@@ -29,6 +29,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod controller;
+pub mod crash;
 pub mod exercise;
 pub mod hal;
 pub mod wiring;

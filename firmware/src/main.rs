@@ -28,10 +28,12 @@
 //!   its air), then boot writes the safe state and, seeing the watchdog's
 //!   reset flag, starts **latched** (`Fault::Watchdog`): no control until
 //!   an operator resets the board (NRST button or power cycle).
-//! * **Panic, HardFault**: the handlers first drive the valve pins to the
-//!   safe state directly ([`board::valves_safe_now`]), then log and wait
-//!   for the watchdog, which resets into the latched boot above (before the
-//!   watchdog is started, they halt with the valves safe).
+//! * **Panic, HardFault, NMI, any other exception or unexpected
+//!   interrupt**: the handlers ([`firmware::crash`]) first drive the valve
+//!   pins to the safe state directly ([`board::valves_safe_now`]), then
+//!   (the panic handler logs once) wait for the watchdog, which resets
+//!   into the latched boot above (before the watchdog is started, they
+//!   halt with the valves safe).
 //! * **Latched faults** (more than `latch_trips` trips within the window):
 //!   the valves stay safe; the operator resets with the NRST button or a
 //!   power cycle (the latch lives in RAM).
@@ -46,6 +48,7 @@ use critical_section::Mutex;
 use defmt_rtt as _;
 use firmware::board::{self, pam_board_control_step, BoardIo};
 use firmware::controller::{ControllerConfig, Fault};
+use firmware::crash::Exception;
 use firmware::hal::{LoadCell, SafeState, Valve};
 use firmware::{exercise, wiring, Controller};
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt, TIM2};
@@ -281,11 +284,13 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     }
 }
 
-/// As the panic handler: valves safe first, then wait for the watchdog.
-// cortex-m-rt requires the HardFault handler to be `unsafe fn`.
-#[allow(unsafe_code)]
-#[cortex_m_rt::exception]
-unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+firmware::crash_handlers!(crashed);
+
+/// HardFault, the NMI and every exception or interrupt without a handler of
+/// its own ([`firmware::crash`]): as the panic handler, valves safe first,
+/// then wait for the watchdog (no log line: defmt's logger may be the
+/// interrupted code's).
+fn crashed(_exception: Exception) -> ! {
     board::valves_safe_now(SAFE);
     loop {
         cortex_m::asm::nop();

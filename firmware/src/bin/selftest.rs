@@ -16,18 +16,32 @@
 //! the controller on the simulated muscle with the inlet filling, then
 //! panics on purpose: the panic handler must put the valves in the safe
 //! state before anything else; it prints the duties and exits with code
-//! [`PANIC_EXIT_CODE`] when they are safe (1 otherwise).
+//! [`PANIC_EXIT_CODE`] when they are safe (1 otherwise). With feature
+//! `qemu-nmi` (`cargo fw-qemu --features qemu-nmi`) the same run pends the
+//! non-maskable interrupt instead, and with `qemu-unhandled` PendSV, which
+//! has no handler of its own: the exception handlers ([`firmware::crash`],
+//! shared with the board controller) must put the valves safe; the image
+//! prints the duties and exits with 0 only when the pended exception
+//! entered them and the valves read safe.
 #![no_std]
 #![no_main]
 
 #[cfg(all(feature = "selftest", feature = "qemu"))]
 compile_error!("enable one of the features `selftest` (board) and `qemu`, not both");
+#[cfg(any(
+    all(feature = "qemu-panic", feature = "qemu-nmi"),
+    all(feature = "qemu-panic", feature = "qemu-unhandled"),
+    all(feature = "qemu-nmi", feature = "qemu-unhandled"),
+))]
+compile_error!("enable at most one of the features `qemu-panic`, `qemu-nmi` and `qemu-unhandled`");
 
 #[cfg(feature = "qemu")]
 use core::sync::atomic::{AtomicU16, Ordering};
 use cortex_m_rt::entry;
 use defmt_rtt as _;
 use firmware::controller::{ControllerConfig, Feedforward, Step};
+#[cfg(feature = "qemu")]
+use firmware::crash::Exception;
 use firmware::hal::{SafeState, Valve, ValvePair, ValvePairConfig};
 #[cfg(feature = "qemu")]
 use firmware::plant::StaticPwm;
@@ -42,12 +56,25 @@ use panic_probe as _;
 #[cfg(feature = "qemu")]
 pub const PANIC_EXIT_CODE: u32 = 101;
 
-/// The valve duties of the `qemu-panic` run, statics so the panic handler
-/// reaches them as the board's reaches its pins.
+/// The valve duties of the `qemu-panic`, `qemu-nmi` and `qemu-unhandled`
+/// runs, statics so the panic and exception handlers reach them as the
+/// board's reach its pins.
 #[cfg(feature = "qemu")]
 static INLET_DUTY: AtomicU16 = AtomicU16::new(0);
 #[cfg(feature = "qemu")]
 static EXHAUST_DUTY: AtomicU16 = AtomicU16::new(0);
+
+/// The exception the `qemu-nmi` or `qemu-unhandled` run pends, and so the
+/// one its exception handler must be entered by (PendSV is vector 14,
+/// cortex-m-rt's `irqn` −2).
+#[cfg(feature = "qemu")]
+const PENDED: Option<Exception> = if cfg!(feature = "qemu-nmi") {
+    Some(Exception::Nmi)
+} else if cfg!(feature = "qemu-unhandled") {
+    Some(Exception::Unhandled { irqn: -2 })
+} else {
+    None
+};
 
 /// Log through defmt and, in the QEMU image, over semihosting as text.
 macro_rules! log {
@@ -98,10 +125,11 @@ fn report(name: &str, r: &Report) {
     );
 }
 
-/// The `qemu-panic` run: control on the simulated muscle, set-point at
-/// the top of the stroke, so the inlet is filling; then a deliberate panic.
+/// The `qemu-panic`, `qemu-nmi` and `qemu-unhandled` runs: control on the
+/// simulated muscle, set-point at the top of the stroke, so the inlet is
+/// filling; then a deliberate panic, or the pended exception ([`PENDED`]).
 #[cfg(feature = "qemu")]
-fn panic_demo(blob: &[u8]) -> ! {
+fn fault_demo(blob: &[u8]) -> ! {
     use firmware::controller::Io;
     use firmware::hal::PressureCalibration;
     use firmware::plant::{MusclePlant, Noise, PlantConfig, SimContraction, SimLoad, SimPressure};
@@ -154,17 +182,42 @@ fn panic_demo(blob: &[u8]) -> ! {
         EXHAUST_DUTY.load(Ordering::Relaxed),
     );
     cortex_m_semihosting::hprintln!(
-        "before the panic: inlet duty {}/{}, exhaust {}/{}, pressure {} MPa",
+        "before the {}: inlet duty {}/{}, exhaust {}/{}, pressure {} MPa",
+        match PENDED {
+            Some(Exception::Nmi) => "NMI",
+            Some(_) => "PendSV",
+            None => "panic",
+        },
         i,
         SimPwm::MAX_DUTY,
         e,
         SimPwm::MAX_DUTY,
         plant.pressure_mpa()
     );
-    // The deliberate fault: an index the compiler cannot see is out of range.
-    let table = [0u8; 4];
-    let k = core::hint::black_box(usize::from(i) + 4);
-    let _ = core::hint::black_box(table[k]);
+    match PENDED {
+        Some(Exception::Nmi) => {
+            // The NMI, pended by software as the clock security system
+            // would (ICSR bit 31, NMIPENDSET); it is taken at once.
+            // SAFETY: writing NMIPENDSET pends the NMI; the zeros written to
+            // the register's other bits change nothing.
+            #[allow(unsafe_code)]
+            unsafe {
+                (*cortex_m::peripheral::SCB::PTR).icsr.write(1 << 31)
+            };
+        }
+        // PendSV, taken at once (nothing masks it here).
+        Some(_) => cortex_m::peripheral::SCB::set_pendsv(),
+        None => {
+            // The deliberate fault: an index the compiler cannot see is out
+            // of range.
+            let table = [0u8; 4];
+            let k = core::hint::black_box(usize::from(i) + 4);
+            let _ = core::hint::black_box(table[k]);
+        }
+    }
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+    cortex_m_semihosting::hprintln!("the fault returned to thread mode");
     finish(false)
 }
 
@@ -223,8 +276,8 @@ fn main() -> ! {
         named(effects.shape.is_some(), ", constraint shape")
     );
     #[cfg(feature = "qemu")]
-    if cfg!(feature = "qemu-panic") {
-        panic_demo(blob)
+    if cfg!(feature = "qemu-panic") || PENDED.is_some() {
+        fault_demo(blob)
     }
 
     let run = |ff: Feedforward, events: bool| {
@@ -320,12 +373,28 @@ fn exit_with(code: u32) {
     };
 }
 
-/// Under QEMU: valves safe first, then end the emulator with a failure.
 #[cfg(feature = "qemu")]
-#[allow(unsafe_code)] // cortex-m-rt requires the HardFault handler to be `unsafe fn`.
-#[cortex_m_rt::exception]
-unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+firmware::crash_handlers!(crashed);
+
+/// Under QEMU, HardFault, the NMI and every exception or interrupt without
+/// a handler of its own ([`firmware::crash`]): valves safe first, then print
+/// the duties and end the emulator, with success only for the exception
+/// the `qemu-nmi` or `qemu-unhandled` run pended ([`PENDED`]) with the
+/// valves read safe.
+#[cfg(feature = "qemu")]
+fn crashed(exception: Exception) -> ! {
     valves_safe_now();
-    cortex_m_semihosting::hprintln!("hard fault at pc {:#010x}; valves safe", frame.pc());
-    finish(false)
+    let (i, e) = (
+        INLET_DUTY.load(Ordering::Relaxed),
+        EXHAUST_DUTY.load(Ordering::Relaxed),
+    );
+    cortex_m_semihosting::hprintln!(
+        "{}: valves inlet duty {}/{}, exhaust {}/{}",
+        exception,
+        i,
+        SimPwm::MAX_DUTY,
+        e,
+        SimPwm::MAX_DUTY
+    );
+    finish(PENDED == Some(exception) && (i, e) == (0, SimPwm::MAX_DUTY))
 }
