@@ -17,10 +17,11 @@
 //! * Tick: TIM2 update interrupt at 1 kHz ([`init`] returns the counter; the
 //!   image unmasks the interrupt).
 //!
-//! * Watchdog: the IWDG, returned by [`init`] unstarted; the image starts
-//!   it with [`wiring::WATCHDOG_MS`] just before control begins and feeds
-//!   it after every completed step. [`init`] reads (and clears) the reset
-//!   flags, so the image knows a watchdog reset and boots latched.
+//! * Watchdog: the IWDG ([`Watchdog`]), configured by [`init`] for
+//!   [`wiring::WATCHDOG_MS`] and returned unstarted; the image starts it
+//!   just before control begins and feeds it after every completed step.
+//!   [`init`] reads (and clears) the reset flags, so the image knows a
+//!   watchdog reset and boots latched.
 //! * Crash: [`valves_safe_now`] drives the valve pins to the safe state as
 //!   plain GPIO outputs, independent of the timer and of any driver state;
 //!   the image's panic handler and its exception handlers
@@ -46,7 +47,6 @@ use stm32f4xx_hal::pac::{self, adc1::RegisterBlock as AdcRegisters, ADC1, ADC2, 
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Config, Enable, Rcc, Reset};
 use stm32f4xx_hal::timer::{CounterHz, Event, PwmChannel};
-use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 /// Upper bound on status polls of one conversion, in case the cycle counter
 /// is stopped (it is started by [`init`]); far beyond the deadline at any
@@ -186,6 +186,9 @@ pub enum BoardError {
     DutySteps,
     /// TIM2 refused [`wiring::CONTROL_HZ`].
     ControlRate,
+    /// The watchdog could not be configured within
+    /// [`wiring::WATCHDOG_MAX_POLLS`] polls.
+    Watchdog(WatchdogError),
 }
 
 impl From<HalConfigError> for BoardError {
@@ -202,6 +205,7 @@ impl core::fmt::Display for BoardError {
                 f.write_str("valve PWM has too few duty steps (timer clock or VALVE_PWM_HZ)")
             }
             BoardError::ControlRate => f.write_str("TIM2 refused the control rate"),
+            BoardError::Watchdog(e) => write!(f, "watchdog: {e}"),
         }
     }
 }
@@ -242,6 +246,105 @@ pub fn valves_safe_now(safe: SafeState) {
         .modify(|r, w| unsafe { w.bits((r.bits() & !(0xF << 16)) | (0b0101 << 16)) });
 }
 
+/// Why [`Watchdog::configure`] gave up: a status flag still set after
+/// [`wiring::WATCHDOG_MAX_POLLS`] polls.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum WatchdogError {
+    /// The LSI oscillator, the IWDG's clock, did not report ready.
+    LsiNotReady,
+    /// IWDG_SR.PVU: a prescaler update did not finish.
+    PrescalerBusy,
+    /// IWDG_SR.RVU: a reload value update did not finish.
+    ReloadBusy,
+}
+
+impl core::fmt::Display for WatchdogError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            WatchdogError::LsiNotReady => "the LSI oscillator did not start",
+            WatchdogError::PrescalerBusy => "the prescaler update did not finish (SR.PVU)",
+            WatchdogError::ReloadBusy => "the reload value update did not finish (SR.RVU)",
+        })
+    }
+}
+
+/// Poll `done` up to [`wiring::WATCHDOG_MAX_POLLS`] times; `Err(e)` if it
+/// never held.
+fn poll_until(mut done: impl FnMut() -> bool, e: WatchdogError) -> Result<(), WatchdogError> {
+    for _ in 0..wiring::WATCHDOG_MAX_POLLS {
+        if done() {
+            return Ok(());
+        }
+    }
+    Err(e)
+}
+
+/// The independent watchdog (IWDG), configured by hand, not through the
+/// HAL's `IndependentWatchdog`: that one writes the prescaler and reload
+/// registers without waiting for the status register's PVU and RVU flags
+/// (with the LSI that applies them not yet running), and its start leaves
+/// the counter at its reset value 0xFFF, so until the first feed the window
+/// was 4096 counts of its prescaler (16 s for 20 ms), not the stated one.
+pub struct Watchdog {
+    iwdg: pac::IWDG,
+}
+
+impl Watchdog {
+    /// Set the IWDG to [`wiring::WATCHDOG_MS`] (prescaler
+    /// [`wiring::WATCHDOG_PRESCALER`], reload [`wiring::WATCHDOG_RELOAD`]),
+    /// not started, as RM0090 §21 asks: LSI on and ready; key 0x5555 to
+    /// unlock PR and RLR; PR written once SR.PVU is clear, RLR once SR.RVU is
+    /// clear; then both flags clear again, so the values are in the
+    /// watchdog's own domain before [`Watchdog::start`] loads the counter.
+    /// Each wait is bounded by [`wiring::WATCHDOG_MAX_POLLS`] polls; on a
+    /// timeout the watchdog is left unstarted and the caller keeps the valves
+    /// safe and runs no control.
+    pub fn configure(iwdg: pac::IWDG, rcc: &pac::RCC) -> Result<Self, WatchdogError> {
+        rcc.csr().modify(|_, w| w.lsion().set_bit());
+        poll_until(
+            || rcc.csr().read().lsirdy().bit_is_set(),
+            WatchdogError::LsiNotReady,
+        )?;
+        iwdg.kr().write(|w| w.key().unlock());
+        poll_until(
+            || iwdg.sr().read().pvu().bit_is_clear(),
+            WatchdogError::PrescalerBusy,
+        )?;
+        const _: () = assert!(wiring::WATCHDOG_PRESCALER == 4);
+        iwdg.pr().write(|w| w.pr().divide_by4());
+        poll_until(
+            || iwdg.sr().read().rvu().bit_is_clear(),
+            WatchdogError::ReloadBusy,
+        )?;
+        iwdg.rlr().write(|w| w.rl().set(wiring::WATCHDOG_RELOAD));
+        poll_until(
+            || iwdg.sr().read().pvu().bit_is_clear(),
+            WatchdogError::PrescalerBusy,
+        )?;
+        poll_until(
+            || iwdg.sr().read().rvu().bit_is_clear(),
+            WatchdogError::ReloadBusy,
+        )?;
+        Ok(Watchdog { iwdg })
+    }
+
+    /// Start the watchdog: reload (key 0xAAAA, which also locks PR and RLR
+    /// again), start (0xCCCC), and reload once more, since the start runs
+    /// the counter from its reset value 0xFFF (512 ms at this prescaler,
+    /// RM0090 §21.3): the first window is [`wiring::WATCHDOG_MS`] too. It
+    /// cannot be stopped but by a reset.
+    pub fn start(&mut self) {
+        self.iwdg.kr().write(|w| w.key().feed());
+        self.iwdg.kr().write(|w| w.key().start());
+        self.iwdg.kr().write(|w| w.key().feed());
+    }
+
+    /// Reload the counter: another [`wiring::WATCHDOG_MS`] before a reset.
+    pub fn feed(&mut self) {
+        self.iwdg.kr().write(|w| w.key().feed());
+    }
+}
+
 /// What [`init`] hands back.
 pub struct Board {
     /// Sensors and valves.
@@ -251,9 +354,9 @@ pub struct Board {
     pub tick: CounterHz<TIM2>,
     /// The PWM channels' full duty (timer counts per period).
     pub max_duty: u16,
-    /// The independent watchdog, not started (it cannot be stopped once
-    /// started; the image starts it when control begins).
-    pub watchdog: IndependentWatchdog,
+    /// The independent watchdog, configured and not started (it cannot be
+    /// stopped once started; the image starts it when control begins).
+    pub watchdog: Watchdog,
     /// The last reset was the independent watchdog's (the reset flags are
     /// cleared by [`init`], so a later reset by the NRST pin or a power
     /// cycle reads `false`).
@@ -263,8 +366,10 @@ pub struct Board {
 /// Clocks, valves (left in `safe`), sensors and the control tick.
 ///
 /// The valve pins are driven, with both channels at the safe state's duty,
-/// before the sensors are set up. Errors: a configuration the wiring
-/// constants make invalid (calibrations, too few duty steps).
+/// before the sensors and the watchdog are set up. Errors (valves left in
+/// `safe`): a configuration the wiring constants make invalid (calibrations,
+/// too few duty steps), or a watchdog that did not take its configuration
+/// ([`Watchdog::configure`]).
 pub fn init(
     dp: pac::Peripherals,
     dcb: &mut cortex_m::peripheral::DCB,
@@ -328,6 +433,18 @@ pub fn init(
         .map_err(|_| BoardError::ControlRate)?;
     tick.listen(Event::Update);
 
+    // Halted by a debugger, the IWDG stops too (probe-rs breakpoints).
+    dp.DBGMCU
+        .apb1_fz()
+        .modify(|_, w| w.dbg_iwdg_stop().set_bit());
+    let watchdog = match Watchdog::configure(dp.IWDG, &rcc) {
+        Ok(w) => w,
+        Err(e) => {
+            let _ = valve.set_safe(safe);
+            return Err(BoardError::Watchdog(e));
+        }
+    };
+
     Ok(Board {
         io: Io {
             pressure,
@@ -337,12 +454,7 @@ pub fn init(
         },
         tick,
         max_duty,
-        watchdog: {
-            let w = IndependentWatchdog::new(dp.IWDG);
-            // Halted by a debugger, the IWDG stops too (probe-rs breakpoints).
-            w.stop_on_debug(&dp.DBGMCU, true);
-            w
-        },
+        watchdog,
         watchdog_reset,
     })
 }

@@ -27,7 +27,10 @@
 //!   during the reset (both valves de-energise and close: the muscle holds
 //!   its air), then boot writes the safe state and, seeing the watchdog's
 //!   reset flag, starts **latched** (`Fault::Watchdog`): no control until
-//!   an operator resets the board (NRST button or power cycle).
+//!   an operator resets the board (NRST button or power cycle). A
+//!   watchdog that does not take its configuration within its bounded
+//!   waits ([`board::Watchdog::configure`]) refuses the boot: valves safe,
+//!   no control.
 //! * **Panic, HardFault, NMI, any other exception or unexpected
 //!   interrupt**: the handlers ([`firmware::crash`]) first drive the valve
 //!   pins to the safe state directly ([`board::valves_safe_now`]), then
@@ -46,15 +49,13 @@ use cortex_m::peripheral::{DWT, NVIC};
 use cortex_m_rt::entry;
 use critical_section::Mutex;
 use defmt_rtt as _;
-use firmware::board::{self, pam_board_control_step, BoardIo};
+use firmware::board::{self, pam_board_control_step, BoardIo, Watchdog};
 use firmware::controller::{ControllerConfig, Fault};
 use firmware::crash::Exception;
 use firmware::hal::{LoadCell, SafeState, Valve};
 use firmware::{exercise, wiring, Controller};
 use stm32f4xx_hal::pac::{self, interrupt, Interrupt, TIM2};
-use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::timer::{CounterHz, Flag};
-use stm32f4xx_hal::watchdog::IndependentWatchdog;
 use stm32f4xx_hal::{ClearFlags, ReadFlags};
 
 /// The safe state the crash handlers write (the controller's default).
@@ -71,7 +72,7 @@ struct ControlLoop {
     io: BoardIo,
     tick: CounterHz<TIM2>,
     /// Fed after every completed step.
-    watchdog: IndependentWatchdog,
+    watchdog: Watchdog,
     /// Position in the trajectory, ticks (`< TRAJECTORY_TICKS`).
     phase: u32,
     /// Steps since boot (wraps after 49 days; used only in log lines).
@@ -186,9 +187,9 @@ fn main() -> ! {
             io: board.io,
             tick: board.tick,
             watchdog: {
-                // From here a stall resets the chip. `start` cannot fail for
-                // this constant (it asserts a timeout below 32.8 s).
-                watchdog.start(wiring::WATCHDOG_MS.millis());
+                // From here a stall resets the chip (`board::init`
+                // configured it, or refused to boot).
+                watchdog.start();
                 watchdog
             },
             phase: 0,

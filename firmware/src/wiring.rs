@@ -38,7 +38,22 @@ pub const CONTROL_HZ: u32 = 1_000;
 /// oscillator, 32 kHz nominal, 17–47 kHz over the F405's range, so the
 /// real timeout is 14–38 ms). The control interrupt feeds it after every
 /// completed step; 20 missed periods reset the chip into the safe state.
+/// The first window after the start is this one too (`board::Watchdog`).
 pub const WATCHDOG_MS: u32 = 20;
+/// The LSI oscillator's nominal frequency, Hz (the IWDG's clock).
+pub const LSI_HZ: u32 = 32_000;
+/// IWDG prescaler (PR = 0, divide by 4): 0.125 ms per count at the nominal
+/// LSI, the finest step, and up to 512 ms.
+pub const WATCHDOG_PRESCALER: u32 = 4;
+/// IWDG reload value: the timeout is (RLR + 1) counts of LSI / prescaler
+/// (RM0090 §21.3), so 159 for [`WATCHDOG_MS`].
+pub const WATCHDOG_RELOAD: u16 = (WATCHDOG_MS * LSI_HZ / 1_000 / WATCHDOG_PRESCALER - 1) as u16;
+/// Polls of a status flag (RCC_CSR.LSIRDY, IWDG_SR.PVU, IWDG_SR.RVU) before
+/// the watchdog setup gives up. An update takes up to 5 LSI cycles, 294 µs
+/// at the slowest LSI (17 kHz), 49 400 core cycles at 168 MHz; the LSI
+/// starts within 40 µs. A poll is at least one core cycle, so this cap is
+/// at least twice the longest wait, and at most a few tens of ms.
+pub const WATCHDOG_MAX_POLLS: u32 = 100_000;
 
 /// PWM frequency of the valve channels, Hz. 25 Hz is a 40 ms period, so
 /// `ValvePairConfig::DEFAULT.min_open_duty` (5 %) is the 2 ms opening time of
@@ -144,6 +159,25 @@ mod tests {
         assert!(LOAD.to_value(at_v(0.33)).unwrap().abs() < 0.5);
         assert!((LOAD.to_value(at_v(2.97)).unwrap() - 1000.0).abs() < 0.5);
         assert!(LOAD.to_value(Counts(4095)).is_err() && LOAD.to_value(Counts(0)).is_err());
+    }
+
+    #[test]
+    fn watchdog_registers_give_the_stated_timeout() {
+        // RM0090's table: at /4, RLR 0 is 0.125 ms and 0xFFF 512 ms.
+        let timeout_ms = |rlr: u16, lsi_hz: u32| {
+            (f64::from(rlr) + 1.0) * f64::from(WATCHDOG_PRESCALER) / f64::from(lsi_hz) * 1e3
+        };
+        assert_eq!(timeout_ms(0, LSI_HZ), 0.125);
+        assert_eq!(timeout_ms(0xFFF, LSI_HZ), 512.0);
+        assert_eq!(WATCHDOG_RELOAD, 159);
+        assert_eq!(timeout_ms(WATCHDOG_RELOAD, LSI_HZ), f64::from(WATCHDOG_MS));
+        // 14–38 ms over the LSI's 17–47 kHz, as documented.
+        assert_eq!(timeout_ms(WATCHDOG_RELOAD, 47_000).round(), 14.0);
+        assert_eq!(timeout_ms(WATCHDOG_RELOAD, 17_000).round(), 38.0);
+        // The bounded waits: at least twice 5 cycles of the slowest LSI at
+        // one core cycle per poll.
+        let slowest_update_cycles = 5 * SYSCLK_HZ / 17_000;
+        assert!(WATCHDOG_MAX_POLLS >= 2 * slowest_update_cycles);
     }
 
     #[test]
