@@ -191,7 +191,8 @@ impl EffectKind {
                     end_shift_per_step: (sixth * t(5).tanh()) as f32,
                     root_shift_per_step_sq: (sixth * t(6).tanh()) as f32,
                     end_shift_per_step_sq: (sixth * t(7).tanh()) as f32,
-                    ..ConstraintShape::NEUTRAL
+                    // The base's stroke table (fit's), if it has one.
+                    ..e.shape.unwrap_or(ConstraintShape::NEUTRAL)
                 })
             }
         }
@@ -205,7 +206,14 @@ impl EffectKind {
             EffectKind::RateDependence => e.rate.is_some(),
             EffectKind::Creep => e.creep.is_some(),
             EffectKind::LoadDependentWidth => e.width.is_some(),
-            EffectKind::ConstraintShape => e.shape.is_some(),
+            // The base may carry fit's stroke table: the candidate is the
+            // polynomial part.
+            EffectKind::ConstraintShape => e.shape.is_some_and(|s| {
+                ConstraintShape {
+                    table: pam_core::effects::StrokeTable::NEUTRAL,
+                    ..s
+                } != ConstraintShape::NEUTRAL
+            }),
         }
     }
 }

@@ -101,6 +101,9 @@ pub(super) struct Setup<'a> {
     /// Each sample's bin of measured contraction along the record's stroke
     /// ([`stroke_bins`]).
     pub(super) stroke_bin: Vec<usize>,
+    /// The effects the base model carries: fit's static shape (its stroke
+    /// table), when fit found one; every candidate is added on top.
+    pub(super) base_effects: Effects,
 }
 
 /// Bins along the stroke of [`stroke_bins`].

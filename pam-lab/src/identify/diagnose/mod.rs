@@ -253,7 +253,10 @@ pub fn diagnose_with_progress(
     // linearly (eqs. 17–19) instead of clamping, when the shape stays valid.
     let record_max_load = samples.iter().map(|s| s.load_n).fold(0.0f64, f64::max) as f32;
     let mut base_params = fit.params;
-    let coeffs = if record_max_load > base_params.max_load_n {
+    // A static shape's stroke table is given over fit's load range: that
+    // range stays.
+    let base_effects = fit.effects();
+    let coeffs = if record_max_load > base_params.max_load_n && fit.constraint_shape.is_none() {
         base_params.max_load_n = record_max_load;
         match Coeffs::new(base_params) {
             Ok(c) => c,
@@ -288,8 +291,9 @@ pub fn diagnose_with_progress(
             crate::identify::fit::PmaxSource::Given => None,
         },
         stroke_bin: evaluate::stroke_bins(samples),
+        base_effects,
     };
-    let base_res = setup.residuals(Effects::NONE);
+    let base_res = setup.residuals(setup.base_effects);
     let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| base_res[i]).collect();
     // The simulation's input noise passes the running median: correlated
     // over its width, not beyond.
@@ -298,7 +302,7 @@ pub fn diagnose_with_progress(
         noise.contraction,
         2 * PRESSURE_MEDIAN_HALF_WIDTH + 1,
     );
-    let (paper_errors, _) = setup.errors(&setup.coeffs, Effects::NONE, 0);
+    let (paper_errors, _) = setup.errors(&setup.coeffs, setup.base_effects, 0);
     // `Pmax` refitted up to its ceiling: the record does not say where the
     // loop closes (the cost falls all the way to an arbitrary bound, `Pmax`
     // standing in for the curve's shape, as on a Maxwell-slip rig whose
@@ -347,7 +351,7 @@ pub fn diagnose_with_progress(
 
     let predicted_base = simulate(
         &refit_base_coeffs,
-        Effects::NONE,
+        setup.base_effects,
         tracker,
         samples,
         &setup.branches,
@@ -437,7 +441,7 @@ fn refit(
         setup,
         base_params,
         setup.coeffs,
-        Effects::NONE,
+        setup.base_effects,
         cfg.refit_iterations,
     )
 }
@@ -449,10 +453,10 @@ fn search(
     cfg: &DiagnoseConfig,
     progress: &dyn Fn(&str),
 ) -> Outcome {
-    let (base_errors, _) = setup.errors(&coeffs, Effects::NONE, 0);
+    let (base_errors, _) = setup.errors(&coeffs, setup.base_effects, 0);
     let (chosen, paths) = paths::search(
         setup,
-        paths::Path::base(params, coeffs, base_errors.clone()),
+        paths::Path::base(params, coeffs, setup.base_effects, base_errors.clone()),
         cfg,
         progress,
     );

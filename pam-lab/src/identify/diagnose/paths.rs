@@ -41,11 +41,11 @@ pub(super) struct Path {
 
 impl Path {
     /// The model with no effect.
-    pub fn base(params: Params, coeffs: Coeffs, errors: ModelErrors) -> Path {
+    pub fn base(params: Params, coeffs: Coeffs, effects: Effects, errors: ModelErrors) -> Path {
         Path {
             params,
             coeffs,
-            effects: Effects::NONE,
+            effects,
             errors,
             n_params: 0,
             added: Vec::new(),

@@ -320,6 +320,7 @@ mod tests {
             noise_contraction: 0.0,
             pmax_floor_mpa,
             stroke_bin: super::super::evaluate::stroke_bins(samples),
+            base_effects: Effects::NONE,
         }
     }
 

@@ -143,3 +143,26 @@ pub(super) fn export(t: &[f64], fixed: &Fixed) -> Params {
     }
     p
 }
+
+/// The `f32` export of `theta` that pam-core accepts: the margin makes that
+/// the rule, and where rounding still breaks it, steps toward the anchor.
+/// The point exported, its parameters and coefficients, or the last error.
+pub(super) fn exported(
+    theta: &[f64],
+    anchor: &[f64; NP],
+    fixed: &Fixed,
+) -> Result<(Vec<f64>, Params, Coeffs), pam_core::Error> {
+    let mut last_error = pam_core::Error::Singular;
+    for k in 0..=PROJECTION_STEPS {
+        let s = 1.0 - (k as f64 / PROJECTION_STEPS as f64);
+        let t: Vec<f64> = (0..NP)
+            .map(|j| anchor[j] + s * (theta[j] - anchor[j]))
+            .collect();
+        let params = export(&t, fixed);
+        match Coeffs::new(params) {
+            Ok(coeffs) => return Ok((t, params, coeffs)),
+            Err(e) => last_error = e,
+        }
+    }
+    Err(last_error)
+}

@@ -338,6 +338,7 @@ pub fn fit_with_progress(
         data: &train,
         fixed,
         penalty_weight: (train.len() as f64).sqrt(),
+        table: None,
     };
     let on_evaluation = |count, cost| progress(Progress::Evaluation { count, cost });
     let minimum = lsq::minimize(
@@ -359,30 +360,12 @@ pub fn fit_with_progress(
     }
     let (theta, was_inside) = project(&minimum.theta, &anchor, &fixed);
 
-    // The f32 export must pass pam-core's own check; the margin makes that
-    // the rule, and where rounding still breaks it, step toward the anchor.
-    let mut accepted = None;
-    let mut last_error = pam_core::Error::Singular;
-    for k in 0..=PROJECTION_STEPS {
-        let s = 1.0 - (k as f64 / PROJECTION_STEPS as f64);
-        let t: Vec<f64> = (0..NP)
-            .map(|j| anchor[j] + s * (theta[j] - anchor[j]))
-            .collect();
-        let params = export(&t, &fixed);
-        match Coeffs::new(params) {
-            Ok(coeffs) => {
-                accepted = Some((t, params, coeffs));
-                break;
-            }
-            Err(e) => last_error = e,
-        }
-    }
-    let Some((theta, params, coeffs)) = accepted else {
-        return Err(FitError::Invalid {
+    let (mut theta, mut params, mut coeffs) =
+        exported(&theta, &anchor, &fixed).map_err(|error| FitError::Invalid {
             source_name: record.source.clone(),
-            error: last_error,
-        });
-    };
+            error,
+        })?;
+    let mut was_inside = was_inside;
 
     // The static shape, where the cubic leaves a systematic misfit.
     let first_misfit = systematic_misfit(&train, &family(&theta, &fixed), None, bin);
@@ -390,11 +373,22 @@ pub fn fit_with_progress(
     let mut constraint_shape = None;
     if cfg.static_shape && first_misfit > 2.0 * split.pressure_noise_mpa {
         progress(Progress::Stage("static shape"));
-        if let Some(stage) =
-            static_shape::fit_static_shape(&train, &fixed, &theta, cfg.patience, progress)
-        {
+        if let Some(stage) = static_shape::fit_static_shape(
+            &train,
+            &fixed,
+            &theta,
+            &anchor,
+            cfg.patience,
+            progress,
+        ) {
             evaluations += stage.evaluations;
             constraint_shape = Some(stage.shape);
+            if let Some(refit) = stage.refit {
+                theta = refit.theta;
+                params = refit.params;
+                coeffs = refit.coeffs;
+                was_inside = refit.was_inside;
+            }
         }
     }
 

@@ -45,6 +45,12 @@ pub(super) struct Problem<'a> {
     pub(super) fixed: Fixed,
     /// Weight of the distance to the feasible set, per parameter scale.
     pub(super) penalty_weight: f64,
+    /// The stroke table's knots per load, when the shape stage found one
+    /// (the paper's model refitted under it).
+    pub(super) table: Option<
+        [[f64; pam_core::effects::shape::table::TABLE_KNOTS];
+            pam_core::effects::shape::table::TABLE_LOADS],
+    >,
 }
 
 impl Problem<'_> {
@@ -55,8 +61,11 @@ impl Problem<'_> {
     pub(super) fn residuals_at(&self, theta: &[f64], out: &mut [f64]) {
         let (inside, _) = project(theta, &self.anchor, &self.fixed);
         let n = self.data.len();
-        self.data
-            .residuals(&family(&inside, &self.fixed), &mut out[..n]);
+        let fam = family(&inside, &self.fixed);
+        match &self.table {
+            Some(t) => self.data.table_residuals(&fam, Some(t), &mut out[..n]),
+            None => self.data.residuals(&fam, &mut out[..n]),
+        }
         for j in 0..NP {
             out[n + j] = self.penalty_weight * (theta[j] - inside[j]) / param_scale(j, &self.fixed);
         }

@@ -37,10 +37,24 @@ pub(super) const NT: usize = TABLE_LOADS * (TABLE_SEGMENTS - 1);
 /// stroke: pam-core's least slope with a margin for the `f32` rounding.
 const MIN_SEGMENT: f64 = 1.5 * MIN_TABLE_SLOPE as f64 / TABLE_SEGMENTS as f64;
 
+/// The paper's model refitted under the table.
+pub(super) struct Refit {
+    /// The fit vector, its parameters and coefficients (pam-core accepts
+    /// them).
+    pub(super) theta: Vec<f64>,
+    pub(super) params: Params,
+    pub(super) coeffs: Coeffs,
+    /// Whether the optimiser's point was feasible before the projection.
+    pub(super) was_inside: bool,
+}
+
 /// What the stage found.
 pub(super) struct ShapeStage {
     /// The shape (the stroke table; no polynomial part), as exported.
     pub(super) shape: ConstraintShape,
+    /// The paper's model refitted under the table, when that lowered the
+    /// training cost.
+    pub(super) refit: Option<Refit>,
     /// Residual evaluations spent.
     pub(super) evaluations: usize,
 }
@@ -112,35 +126,114 @@ fn cost(
     0.5 * r.iter().map(|v| v * v).sum::<f64>()
 }
 
-/// The stage on the first stage's paper model `theta`. `None` when the
-/// table does not earn its parameters or pam-core refuses its export.
-pub(super) fn fit_static_shape(
+/// The table for the paper model `fam`, from the variables `w0`.
+fn fit_table(
     train: &TrainSet,
-    fixed: &Fixed,
-    theta: &[f64],
+    fam: &LoadFamily,
+    w0: &[f64],
     patience: usize,
     progress: &(dyn Fn(Progress) + Sync),
-) -> Option<ShapeStage> {
-    let n = train.len();
-    let fam = family(theta, fixed);
+) -> Option<lsq::Minimum> {
     let residuals = |w: &[f64], out: &mut [f64]| {
-        train.table_residuals(&fam, Some(&knots(w)), out);
+        train.table_residuals(fam, Some(&knots(w)), out);
     };
     let on_evaluation = |count, cost| progress(Progress::Evaluation { count, cost });
     let minimum = lsq::minimize(
         &lsq::Residuals {
-            m: n,
+            m: train.len(),
             residuals: &residuals,
             step: &|_, v| 1e-7 * v.abs().max(1.0),
             on_evaluation: &on_evaluation,
         },
-        &[0.0; NT],
+        w0,
+        patience,
+    );
+    minimum.usable().then_some(minimum)
+}
+
+/// The paper's variables refitted under the table `nodes` from `theta`
+/// (the first stage's problem: feasible projection toward `anchor`), then
+/// exported; with the training cost under the table.
+fn refit_paper(
+    train: &TrainSet,
+    fixed: &Fixed,
+    theta: &[f64],
+    anchor: &[f64; NP],
+    nodes: &[[f64; TABLE_KNOTS]; TABLE_LOADS],
+    patience: usize,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Option<(Refit, f64)> {
+    let problem = Problem {
+        anchor: *anchor,
+        data: train,
+        fixed: *fixed,
+        penalty_weight: (train.len() as f64).sqrt(),
+        table: Some(*nodes),
+    };
+    let on_evaluation = |count, cost| progress(Progress::Evaluation { count, cost });
+    let minimum = lsq::minimize(
+        &lsq::Residuals {
+            m: problem.n_residuals(),
+            residuals: &|t, out| problem.residuals_at(t, out),
+            step: &|j, v| 1e-7 * v.abs().max(param_scale(j, fixed)),
+            on_evaluation: &on_evaluation,
+        },
+        theta,
         patience,
     );
     if !minimum.usable() {
         return None;
     }
-    let (before, after) = (cost(train, &fam, None), minimum.cost);
+    let (inside, was_inside) = project(&minimum.theta, anchor, fixed);
+    let (theta, params, coeffs) = exported(&inside, anchor, fixed).ok()?;
+    let c = cost(train, &family(&theta, fixed), Some(nodes));
+    Some((
+        Refit {
+            theta,
+            params,
+            coeffs,
+            was_inside,
+        },
+        c,
+    ))
+}
+
+/// The stage on the first stage's paper model `theta`: the table, the
+/// paper's model refitted under it, the table again. `None` when the table
+/// does not earn its parameters or pam-core refuses its export.
+pub(super) fn fit_static_shape(
+    train: &TrainSet,
+    fixed: &Fixed,
+    theta: &[f64],
+    anchor: &[f64; NP],
+    patience: usize,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Option<ShapeStage> {
+    let n = train.len();
+    let fam = family(theta, fixed);
+    let mut minimum = fit_table(train, &fam, &[0.0; NT], patience, progress)?;
+    let mut evaluations = minimum.evaluations;
+    let before = cost(train, &fam, None);
+    let mut refit = None;
+    if let Some((r, c)) = refit_paper(
+        train,
+        fixed,
+        theta,
+        anchor,
+        &knots(&minimum.theta),
+        patience,
+        progress,
+    ) {
+        if c < minimum.cost {
+            let fam = family(&r.theta, fixed);
+            if let Some(m) = fit_table(train, &fam, &minimum.theta, patience, progress) {
+                evaluations += m.evaluations;
+                minimum = m;
+                refit = Some(r);
+            }
+        }
+    }
+    let after = minimum.cost;
     let nf = n as f64;
     let earns =
         before > 0.0 && after > 0.0 && nf * (after / before).ln() + NT as f64 * nf.ln() < 0.0;
@@ -154,6 +247,7 @@ pub(super) fn fit_static_shape(
     shape.validate().ok()?;
     Some(ShapeStage {
         shape,
-        evaluations: minimum.evaluations,
+        refit,
+        evaluations,
     })
 }
