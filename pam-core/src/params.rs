@@ -101,14 +101,15 @@ impl Params {
     /// McKibben muscle (Tondu–Lopez force, bladder threshold, Maxwell-slip
     /// friction: `host_sim::plant::MuscleParams::DEFAULT`) driven to 0.5 MPa.
     ///
-    /// Origin: identified by `pam-lab fit` with its default settings from
-    /// that rig's characterisation run, `host_sim::characterisation_run(1)`,
-    /// as the main job writes it, and copied from the `model_params.rs` the
-    /// fit writes (the `f32` values as printed there):
+    /// Origin: the paper's model alone (no static shape) identified by
+    /// `pam-lab fit` from that rig's characterisation run,
+    /// `host_sim::characterisation_run(1)`, as the main job writes it, and
+    /// copied from the `model_params.rs` the fit writes (the `f32` values as
+    /// printed there):
     ///
     /// ```sh
     /// cargo run --release -p host-sim     # writes target/host-sim-report/characterisation.csv
-    /// cargo run --release -p pam-lab -- fit target/host-sim-report/characterisation.csv -o fit/
+    /// cargo run --release -p pam-lab -- fit target/host-sim-report/characterisation.csv --no-static-shape -o fit/
     /// ```
     ///
     /// `host-sim/tests/default_coeffs.rs` re-runs that fit and fails if any

@@ -77,6 +77,10 @@ struct FitOptions {
     /// Kind of test: `isotonic`, `isometric` or `mixed` (default: detected from the record).
     #[arg(long, value_name = "KIND")]
     test: Option<TestKind>,
+    /// Fit the paper's cubic alone: no static shape (stroke table), even
+    /// where the cubic leaves a systematic misfit.
+    #[arg(long)]
+    no_static_shape: bool,
 }
 
 impl FitOptions {
@@ -92,6 +96,7 @@ impl FitOptions {
             load_bin_n: self.load_bin,
             min_samples_per_group: self.min_samples,
             test: self.test,
+            static_shape: !self.no_static_shape,
             ..FitConfig::default()
         }
     }

@@ -206,14 +206,7 @@ impl EffectKind {
             EffectKind::RateDependence => e.rate.is_some(),
             EffectKind::Creep => e.creep.is_some(),
             EffectKind::LoadDependentWidth => e.width.is_some(),
-            // The base may carry fit's stroke table: the candidate is the
-            // polynomial part.
-            EffectKind::ConstraintShape => e.shape.is_some_and(|s| {
-                ConstraintShape {
-                    table: pam_core::effects::StrokeTable::NEUTRAL,
-                    ..s
-                } != ConstraintShape::NEUTRAL
-            }),
+            EffectKind::ConstraintShape => e.shape.is_some(),
         }
     }
 }

@@ -241,6 +241,12 @@ pub fn diagnose_with_progress(
     };
     let mut fit_cfg = cfg.fit.clone();
     fit_cfg.holdout = Holdout::None;
+    // The base is the paper's model alone: a static shape fitted on the
+    // training record before the effects are judged takes up part of
+    // whatever dynamic effect the record has (a creep or rate record's
+    // systematic misfit is the effect's, not the curve's). The shape is a
+    // candidate like the others.
+    fit_cfg.static_shape = false;
     progress(&format!(
         "fitting the paper's model on {} training samples",
         train_record.samples.len()
@@ -253,10 +259,8 @@ pub fn diagnose_with_progress(
     // linearly (eqs. 17–19) instead of clamping, when the shape stays valid.
     let record_max_load = samples.iter().map(|s| s.load_n).fold(0.0f64, f64::max) as f32;
     let mut base_params = fit.params;
-    // A static shape's stroke table is given over fit's load range: that
-    // range stays.
     let base_effects = fit.effects();
-    let coeffs = if record_max_load > base_params.max_load_n && fit.constraint_shape.is_none() {
+    let coeffs = if record_max_load > base_params.max_load_n {
         base_params.max_load_n = record_max_load;
         match Coeffs::new(base_params) {
             Ok(c) => c,
