@@ -237,7 +237,7 @@ fn track(rig: &EffectRig, sc: &Scenario, id: &Identified, cfg: &BenchConfig) -> 
 /// The end-to-end table, Markdown.
 pub fn table(outcomes: &[RigOutcome]) -> String {
     let mut s = String::new();
-    s.push_str("| rig (effect turned up) | diagnose named | held-out RMS before -> after (noise) | scenario | PI | paper FF+PI | diagnosed FF+PI | diagnosed / paper |\n");
+    s.push_str("| rig (effect turned up) | diagnose named | held-out RMS before -> after (noise) | scenario | PI | fit FF+PI | diagnosed FF+PI | diagnosed / fit |\n");
     s.push_str("|---|---|---|---|---|---|---|---|\n");
     for o in outcomes {
         let rig = format!("{} ({})", o.rig.name, o.rig.effect);

@@ -142,6 +142,35 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
     eprintln!("validation pressure RMS: model {model:.4} MPa, reference {reference:.4} MPa");
     assert!(model.is_finite() && model > 0.0, "{model}");
     assert!(stdout.contains("reference surface"), "{stdout}");
+    // The Chou–Hannaford curve is outside the cubic family: fit adds the
+    // static shape's stroke table (blob version 3), and with it and the
+    // hysteresis the model predicts the other test no worse than the
+    // static surface; the cubic alone cannot.
+    let blob = std::fs::read(fit_dir.join("model.blob")).unwrap();
+    assert_eq!(u16::from_le_bytes([blob[4], blob[5]]), 3);
+    assert!(model <= reference, "{model} vs {reference}");
+    let cubic_dir = dir.path().join("fit-cubic");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "fit",
+        out.join("train.csv").to_str().unwrap(),
+        "--validate",
+        out.join("test.csv").to_str().unwrap(),
+        "--holdout",
+        "none",
+        "--no-plot",
+        "--no-static-shape",
+        "-o",
+        cubic_dir.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cubic_dir.join("model.json")).unwrap())
+            .unwrap();
+    let cubic = json["fit"]["validation"]["model"]["total"]["pressure_rms_mpa"]
+        .as_f64()
+        .unwrap();
+    eprintln!("the cubic alone: {cubic:.4} MPa");
+    assert!(cubic > 1.5 * model, "{cubic} vs {model}");
 
     // simulate judges the same samples: the slack ones are left out.
     let (ok, stdout, stderr) = pam_lab(&[
