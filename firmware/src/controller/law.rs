@@ -111,7 +111,7 @@ impl Law {
     /// ([`ModelBand`]): the offset its width and rate added on the last
     /// period, its shape at `load_n` (made once per load and kept with the
     /// feedforward's state, which inverts the same shape).
-    pub fn model_band(&mut self, params: &Params, model: &LoadModel, load_n: f32) -> ModelBand {
+    pub fn model_band(&mut self, params: &Params, model: &LoadModel, load_n: f32) -> ModelBand<'_> {
         let Some(inv) = &self.inverse else {
             return ModelBand::default();
         };
@@ -123,9 +123,7 @@ impl Law {
         };
         ModelBand {
             extra_offset_mpa,
-            shape: inv
-                .shape_at_load(&mut self.state, params, load_n)
-                .map(|s| *s.shape()),
+            shape: inv.shape_at_load(&mut self.state, params, load_n),
         }
     }
 

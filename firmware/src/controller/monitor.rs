@@ -317,12 +317,13 @@ pub(super) struct Monitor {
 
 /// How a model with effects widens the model check's band.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ModelBand {
+pub struct ModelBand<'a> {
     /// `(S − 1)·be` for the offset scale `S > 1` of width and rate, MPa
     /// (0 without them).
     pub extra_offset_mpa: f32,
-    /// The shape correction at the active load.
-    pub shape: Option<pam_core::effects::ConstraintShape>,
+    /// The shape correction at the active load, as the feedforward keeps
+    /// it (borrowed: no copy per period).
+    pub shape: Option<&'a pam_core::effects::ShapeInverse>,
 }
 
 impl Monitor {
@@ -500,7 +501,7 @@ impl Monitor {
     pub fn check_model(
         &mut self,
         model: &LoadModel,
-        widen: &ModelBand,
+        widen: &ModelBand<'_>,
         pressure_mpa: f32,
         contraction: f32,
         controlling: bool,

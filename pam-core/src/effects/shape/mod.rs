@@ -312,6 +312,28 @@ impl ShapeInverse {
         &self.shape
     }
 
+    /// [`ConstraintShape::apply`] with the table's check made once, at
+    /// [`ShapeInverse::new`]: what a controller calls every period (its
+    /// model check maps its band's ends through the shape).
+    pub fn apply(&self, model: &LoadModel, contraction: f32) -> f32 {
+        let (r, rx) = (model.root_contraction(), model.max_contraction());
+        let s = rx - r;
+        if !(s > 0.0) {
+            return r;
+        }
+        let x = if contraction.is_finite() {
+            contraction
+        } else {
+            r
+        };
+        let u = clamp((x - r) / s, 0.0, 1.0);
+        let u = match &self.table {
+            Some(k) => table::map(k, u),
+            None => u,
+        };
+        r + s * clamp(self.shape.map_fraction(u), self.lo_end, self.hi_end)
+    }
+
     /// [`ConstraintShape::model_contraction`]: [`SHAPE_INVERSE_STEPS`]
     /// Newton steps from the chord's estimate, each kept inside the
     /// bracket the previous ones established (a step that leaves it

@@ -373,14 +373,9 @@ pub fn fit_with_progress(
     let mut constraint_shape = None;
     if cfg.static_shape && first_misfit > 2.0 * split.pressure_noise_mpa {
         progress(Progress::Stage("static shape"));
-        if let Some(stage) = static_shape::fit_static_shape(
-            &train,
-            &fixed,
-            &theta,
-            &anchor,
-            cfg.patience,
-            progress,
-        ) {
+        if let Some(stage) =
+            static_shape::fit_static_shape(&train, &fixed, &theta, &anchor, cfg.patience, progress)
+        {
             evaluations += stage.evaluations;
             constraint_shape = Some(stage.shape);
             if let Some(refit) = stage.refit {
