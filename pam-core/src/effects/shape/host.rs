@@ -8,7 +8,7 @@ use crate::load_family::LoadCubic;
 
 /// The host path (`f64`): the same map as the `f32` one the chip runs
 /// ([`ConstraintShape::at_load`], [`ConstraintShape::apply`],
-/// [`ShapeInverse::model_contraction`]) in double precision, for an
+/// [`super::ShapeInverse::model_contraction`]) in double precision, for an
 /// identification whose finite differences need more than `f32`'s seven
 /// digits. Test `f64_path_agrees_with_the_chip`.
 impl ConstraintShape {
