@@ -12,16 +12,16 @@ pub const PAM_PARAMS: Params = Params {
     max_load_n: 600.0,
     load_step_n: 100.0,
     points: CriticalPoints {
-        root_contraction: 0.015128784,
-        max_contraction: 0.2298,
+        root_contraction: 0.015128744,
+        max_contraction: 0.22979991,
         max_pressure_mpa: 0.5009666,
-        tangency: Point { contraction: 0.06817606, pressure_mpa: 0.19339366 },
-        inflection: Point { contraction: 0.12122334, pressure_mpa: 0.24299686 },
+        tangency: Point { contraction: 0.06820464, pressure_mpa: 0.19581091 },
+        inflection: Point { contraction: 0.121280536, pressure_mpa: 0.24320877 },
     },
-    root_regression_per_step: 0.005345376,
-    max_regression_per_step: 0.016379353,
-    c_growth_per_step: 0.15475434,
-    ellipse_height_mpa: 0.030228434,
+    root_regression_per_step: 0.0047306623,
+    max_regression_per_step: 0.016510796,
+    c_growth_per_step: 0.18090485,
+    ellipse_height_mpa: 0.029676748,
 };
 
 /// Shape of the non-local memory (chosen on the training samples).

@@ -103,6 +103,10 @@ pub struct ModelInverse {
     dt_s: f32,
     /// The creep lag's gain over one period ([`Creep::lag_gain`]).
     creep_lag_gain: f32,
+    /// Whether the shape has a stroke table that is not the identity
+    /// (checked once here, so a shape without one costs no table work when
+    /// the load switches).
+    shape_table: bool,
 }
 
 /// The feedforward's own state: the reversal memory of the pressures it
@@ -140,6 +144,7 @@ impl ModelInverse {
             effects,
             dt_s,
             creep_lag_gain: effects.creep.map_or(0.0, |c| c.lag_gain(dt_s)),
+            shape_table: effects.shape.is_some_and(|s| !s.table.is_neutral()),
         })
     }
 
@@ -175,7 +180,12 @@ impl ModelInverse {
         // Element by element: `==` on the arrays calls `memcmp`.
         let same = |k: &[u32; 3]| k[0] == key[0] && k[1] == key[1] && k[2] == key[2];
         if !matches!(&state.shape, Some((k, _)) if same(k)) {
-            state.shape = Some((key, shape.inverse_at_load(params, load_n)));
+            let inverse = if self.shape_table {
+                shape.inverse_at_load(params, load_n)
+            } else {
+                shape.inverse_at_load_without_table(params, load_n)
+            };
+            state.shape = Some((key, inverse));
         }
         state.shape.as_ref().map(|(_, s)| s)
     }

@@ -148,9 +148,7 @@ pub fn error_table(
                 // stroke, then the shape's inverse.
                 let x = (s.contraction as f32).clamp(m.root_contraction(), m.max_contraction());
                 let x_model = inverse.model_contraction(m, x);
-                let x = inverse
-                    .shape()
-                    .apply(m, m.contraction(s.pressure_mpa as f32, br));
+                let x = inverse.apply(m, m.contraction(s.pressure_mpa as f32, br));
                 (x_model, x)
             }
             None => (

@@ -8,9 +8,8 @@ use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A least-squares problem as the fits state it: `m` residuals of a
-/// parameter vector, written by `residuals` (non-finite values are
-/// replaced by 10⁶, so a point where the model breaks is a bad point, not
-/// an abort), and the finite-difference step of each parameter at a point.
+/// parameter vector, written by `residuals`, and the finite-difference step
+/// of each parameter at a point.
 pub struct Residuals<'a> {
     /// Number of residuals.
     pub m: usize,
@@ -20,15 +19,33 @@ pub struct Residuals<'a> {
     pub step: &'a (dyn Fn(usize, f64) -> f64 + Sync),
     /// Hears every evaluation: its count and cost `½·Σr²`.
     pub on_evaluation: &'a (dyn Fn(usize, f64) + Sync),
+    /// What a non-finite residual means.
+    pub non_finite: NonFinite,
+}
+
+/// What a non-finite residual (a point where the model breaks) means.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NonFinite {
+    /// A bad point: the residual is 10⁶ and the optimiser moves on.
+    Penalise,
+    /// No point: the optimiser's step there fails (the crate shrinks it).
+    Refuse,
 }
 
 impl Residuals<'_> {
-    fn eval(&self, theta: &[f64], out: &mut [f64]) {
+    /// The residuals at `theta`; `false` when they are not usable.
+    fn eval(&self, theta: &[f64], out: &mut [f64]) -> bool {
         (self.residuals)(theta, out);
-        for v in out.iter_mut() {
-            if !v.is_finite() {
-                *v = 1e6;
+        match self.non_finite {
+            NonFinite::Penalise => {
+                for v in out.iter_mut() {
+                    if !v.is_finite() {
+                        *v = 1e6;
+                    }
+                }
+                true
             }
+            NonFinite::Refuse => out.iter().all(|v| v.is_finite()),
         }
     }
 }
@@ -77,10 +94,10 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Adapter<'_, '_> {
 
     fn residuals(&self) -> Option<DVector<f64>> {
         let mut r = DVector::zeros(self.problem.m);
-        self.problem.eval(self.theta.as_slice(), r.as_mut_slice());
+        let usable = self.problem.eval(self.theta.as_slice(), r.as_mut_slice());
         let count = 1 + self.evaluations.fetch_add(1, Ordering::Relaxed);
         (self.problem.on_evaluation)(count, 0.5 * r.norm_squared());
-        Some(r)
+        usable.then_some(r)
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
@@ -90,12 +107,10 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Adapter<'_, '_> {
             .enumerate()
             .map(|(j, &v)| (self.problem.step)(j, v))
             .collect();
-        Some(forward_difference_jacobian(
-            &theta,
-            &steps,
-            self.problem.m,
-            &|t, out| self.problem.eval(t, out),
-        ))
+        let jac = forward_difference_jacobian(&theta, &steps, self.problem.m, &|t, out| {
+            self.problem.eval(t, out);
+        });
+        jac.iter().all(|v| v.is_finite()).then_some(jac)
     }
 }
 

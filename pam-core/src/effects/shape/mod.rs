@@ -107,6 +107,26 @@ impl ConstraintShape {
     /// increasing at every load; a non-finite load gives the shape at the
     /// minimum load.
     pub fn at_load(&self, params: &Params, load_n: f32) -> ConstraintShape {
+        let bend = self.bend_at_load(params, load_n);
+        ConstraintShape {
+            bulge: bend.bulge,
+            tilt: bend.tilt,
+            bulge_per_step: 0.0,
+            tilt_per_step: 0.0,
+            root_shift: bend.root_shift,
+            end_shift: bend.end_shift,
+            root_shift_per_step: 0.0,
+            end_shift_per_step: 0.0,
+            root_shift_per_step_sq: 0.0,
+            end_shift_per_step_sq: 0.0,
+            table: StrokeTable {
+                knots: [self.table.knots_at_load(params, load_n); table::TABLE_LOADS],
+            },
+        }
+    }
+
+    /// The polynomial part at `load_n`, as [`Self::at_load`] has it.
+    fn bend_at_load(&self, params: &Params, load_n: f32) -> Bend {
         let steps = (load_n - params.min_load_n) / params.load_step_n;
         let steps = if steps.is_finite() { steps } else { 0.0 };
         let b = self.bulge + self.bulge_per_step * steps;
@@ -125,22 +145,11 @@ impl ConstraintShape {
         } else {
             0.0
         };
-        ConstraintShape {
+        Bend {
             bulge: b * k,
             tilt: t * k,
-            bulge_per_step: 0.0,
-            tilt_per_step: 0.0,
             root_shift: r * k,
             end_shift: e * k,
-            root_shift_per_step: 0.0,
-            end_shift_per_step: 0.0,
-            root_shift_per_step_sq: 0.0,
-            end_shift_per_step_sq: 0.0,
-            table: if self.table.is_neutral() {
-                self.table
-            } else {
-                self.table.at_load(params, load_n)
-            },
         }
     }
 
@@ -202,9 +211,17 @@ impl ConstraintShape {
     /// The stroke fraction `u` corrected: `u + u·(1 − u)·(bulge + tilt·(2u − 1))
     /// + (1 − u)·root_shift + u·end_shift`.
     fn map_fraction(&self, u: f32) -> f32 {
-        u + u * (1.0 - u) * (self.bulge + self.tilt * (2.0 * u - 1.0))
-            + (1.0 - u) * self.root_shift
-            + u * self.end_shift
+        self.bend().map_fraction(u)
+    }
+
+    /// The polynomial part at the minimum load.
+    fn bend(&self) -> Bend {
+        Bend {
+            bulge: self.bulge,
+            tilt: self.tilt,
+            root_shift: self.root_shift,
+            end_shift: self.end_shift,
+        }
     }
 
     /// The muscle's contraction where `model` predicts `contraction`, with
@@ -252,7 +269,35 @@ impl ConstraintShape {
     /// [`Self::at_load`] ready for its inverse: what a feedforward computes
     /// once per load switch.
     pub fn inverse_at_load(&self, params: &Params, load_n: f32) -> ShapeInverse {
-        ShapeInverse::new(self.at_load(params, load_n))
+        ShapeInverse::from_parts(
+            self.bend_at_load(params, load_n),
+            self.table.knots_at_load(params, load_n),
+        )
+    }
+
+    /// [`Self::inverse_at_load`] for a shape whose table is the identity
+    /// (the caller checked [`StrokeTable::is_neutral`] once): no table work.
+    pub fn inverse_at_load_without_table(&self, params: &Params, load_n: f32) -> ShapeInverse {
+        ShapeInverse::from_parts_without_table(self.bend_at_load(params, load_n))
+    }
+}
+
+/// The polynomial part of a shape at one load (no load terms).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Bend {
+    bulge: f32,
+    tilt: f32,
+    root_shift: f32,
+    end_shift: f32,
+}
+
+impl Bend {
+    /// The stroke fraction `u` corrected: `u + u·(1 − u)·(bulge + tilt·(2u − 1))
+    /// + (1 − u)·root_shift + u·end_shift`.
+    fn map_fraction(&self, u: f32) -> f32 {
+        u + u * (1.0 - u) * (self.bulge + self.tilt * (2.0 * u - 1.0))
+            + (1.0 - u) * self.root_shift
+            + u * self.end_shift
     }
 }
 
@@ -266,7 +311,7 @@ impl ConstraintShape {
 /// `c₂ = 3·tilt − bulge`, `c₃ = −2·tilt`. The load terms are not used.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShapeInverse {
-    shape: ConstraintShape,
+    bend: Bend,
     /// `end_shift − root_shift`, `bulge − tilt`, `2·tilt`.
     d: f32,
     bulge_minus_tilt: f32,
@@ -286,14 +331,29 @@ pub struct ShapeInverse {
 }
 
 impl ShapeInverse {
-    /// `shape` ready for its inverse (one division).
+    /// `shape` ready for its inverse (one division), with its shape at the
+    /// minimum load (see [`ConstraintShape::at_load`]).
     pub fn new(shape: ConstraintShape) -> ShapeInverse {
-        let (b, t) = (shape.bulge, shape.tilt);
-        let d = shape.end_shift - shape.root_shift;
-        let (lo_end, hi_end) = (shape.map_fraction(0.0), shape.map_fraction(1.0));
+        ShapeInverse::from_parts(shape.bend(), shape.table.knots[0])
+    }
+
+    /// The polynomial part and the table's knots at one load ready for the
+    /// inverse; a table that is the identity is skipped from then on.
+    fn from_parts(bend: Bend, knots: [f32; table::TABLE_KNOTS]) -> ShapeInverse {
+        ShapeInverse {
+            table: (!table::is_identity(&knots)).then_some(knots),
+            ..ShapeInverse::from_parts_without_table(bend)
+        }
+    }
+
+    /// The polynomial part alone ready for the inverse.
+    fn from_parts_without_table(bend: Bend) -> ShapeInverse {
+        let (b, t) = (bend.bulge, bend.tilt);
+        let d = bend.end_shift - bend.root_shift;
+        let (lo_end, hi_end) = (bend.map_fraction(0.0), bend.map_fraction(1.0));
         let span = hi_end - lo_end;
         ShapeInverse {
-            shape,
+            bend,
             d,
             bulge_minus_tilt: b - t,
             two_tilt: 2.0 * t,
@@ -303,13 +363,8 @@ impl ShapeInverse {
             lo_end,
             hi_end,
             inv_span: if span > 0.0 { 1.0 / span } else { 0.0 },
-            table: (!table::is_identity(&shape.table.knots[0])).then_some(shape.table.knots[0]),
+            table: None,
         }
-    }
-
-    /// The shape it inverts.
-    pub fn shape(&self) -> &ConstraintShape {
-        &self.shape
     }
 
     /// [`ConstraintShape::apply`] with the table's check made once, at
@@ -331,7 +386,7 @@ impl ShapeInverse {
             Some(k) => table::map(k, u),
             None => u,
         };
-        r + s * clamp(self.shape.map_fraction(u), self.lo_end, self.hi_end)
+        r + s * clamp(self.bend.map_fraction(u), self.lo_end, self.hi_end)
     }
 
     /// [`ConstraintShape::model_contraction`]: [`SHAPE_INVERSE_STEPS`]
@@ -355,7 +410,7 @@ impl ShapeInverse {
         let (d, bt, t2) = (self.d, self.bulge_minus_tilt, self.two_tilt);
         let (c1, c2x2, c3x3) = (self.c1, self.c2x2, self.c3x3);
         // The map's constant term less the target, once.
-        let offset = self.shape.root_shift - target;
+        let offset = self.bend.root_shift - target;
         let (mut lo, mut hi) = (0.0f32, 1.0f32);
         let mut u = if self.inv_span > 0.0 {
             clamp((target - lo_end) * self.inv_span, 0.0, 1.0)

@@ -96,9 +96,10 @@ impl StrokeTable {
         Ok(())
     }
 
-    /// The table at `load_n` (clamped to the calibrated range; NaN → the
-    /// minimum load), the blend of the two nearest loads', at every load.
-    pub fn at_load(&self, params: &Params, load_n: f32) -> StrokeTable {
+    /// The knots at `load_n` (clamped to the calibrated range; NaN → the
+    /// minimum load): the blend of the two nearest loads' (the identity's
+    /// blend is the identity, bit for bit).
+    pub fn knots_at_load(&self, params: &Params, load_n: f32) -> [f32; TABLE_KNOTS] {
         let span = params.max_load_n - params.min_load_n;
         let f = if span > 0.0 {
             (load_n - params.min_load_n) / span
@@ -114,14 +115,16 @@ impl StrokeTable {
         // `pos` is in [0, TABLE_LOADS − 1]: the cast cannot wrap.
         let i = (pos as usize).min(TABLE_LOADS - 2);
         let t = pos - i as f32;
-        let (a, b) = (&self.knots[i], &self.knots[i + 1]);
+        // No index that could fail: the pair is found, not indexed.
+        let (a, b) = match self.knots.windows(2).nth(i) {
+            Some([a, b]) => (a, b),
+            _ => (&self.knots[0], &self.knots[0]),
+        };
         let mut k = [0.0; TABLE_KNOTS];
         for (j, v) in k.iter_mut().enumerate() {
             *v = a[j] + t * (b[j] - a[j]);
         }
-        StrokeTable {
-            knots: [k; TABLE_LOADS],
-        }
+        k
     }
 }
 
@@ -141,8 +144,9 @@ pub fn map(k: &[f32; TABLE_KNOTS], u: f32) -> f32 {
     };
     let pos = u * TABLE_SEGMENTS as f32;
     let j = (pos as usize).min(TABLE_SEGMENTS - 1);
-    let lo = if j == 0 { 0.0 } else { k[j - 1] };
-    let hi = if j == TABLE_KNOTS { 1.0 } else { k[j] };
+    // The segment's ends: 0 before the first knot, 1 after the last.
+    let lo = k.get(j.wrapping_sub(1)).copied().unwrap_or(0.0);
+    let hi = k.get(j).copied().unwrap_or(1.0);
     lo + (pos - j as f32) * (hi - lo)
 }
 
@@ -269,7 +273,9 @@ mod tests {
         let p = Params::DEFAULT;
         for l in 0..=10 {
             let load = p.min_load_n + (p.max_load_n - p.min_load_n) * l as f32 / 10.0;
-            let at = t.at_load(&p, load);
+            let at = StrokeTable {
+                knots: [t.knots_at_load(&p, load); TABLE_LOADS],
+            };
             assert!(at.validate().is_ok());
             for n in 0..=200 {
                 let u = n as f32 / 200.0;
@@ -296,8 +302,10 @@ mod tests {
     fn loads_outside_the_range_take_the_end_tables() {
         let t = bent();
         let p = Params::DEFAULT;
-        assert_eq!(t.at_load(&p, p.min_load_n - 50.0).knots[0], t.knots[0]);
-        assert_eq!(t.at_load(&p, f32::NAN).knots[0], t.knots[0]);
-        assert_eq!(t.at_load(&p, p.max_load_n + 50.0).knots[0], t.knots[3]);
+        assert_eq!(t.knots_at_load(&p, p.min_load_n - 50.0), t.knots[0]);
+        assert_eq!(t.knots_at_load(&p, f32::NAN), t.knots[0]);
+        assert_eq!(t.knots_at_load(&p, p.max_load_n + 50.0), t.knots[3]);
+        let n = StrokeTable::NEUTRAL;
+        assert!(is_identity(&n.knots_at_load(&p, 333.3)));
     }
 }

@@ -1,8 +1,7 @@
 //! The candidate effects: their parameter maps, the fit of one candidate's
 //! parameters on the current base, and the evidence rule.
 
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use crate::identify::lsq;
 use pam_core::effects::memory::MIN_MERGE_SPAN;
 use pam_core::effects::rate::{MAX_RATE_MPA_PER_S, RATE_EXPONENT_RANGE};
 use pam_core::effects::shape::MAX_SHAPE_SLOPE;
@@ -283,9 +282,7 @@ struct CandidateProblem<'s, 'a> {
     coeffs: Coeffs,
     kind: EffectKind,
     base: Effects,
-    /// The parameters the optimiser moves.
-    theta: DVector<f64>,
-    /// The ones it does not (appended to `theta` for [`EffectKind::apply`]).
+    /// The parameters the optimiser does not move (appended to `theta` for [`EffectKind::apply`]).
     fixed: Vec<f64>,
 }
 
@@ -302,37 +299,6 @@ impl CandidateProblem<'_, '_> {
         for (o, &i) in out.iter_mut().zip(&self.setup.train_idx) {
             *o = res[i];
         }
-    }
-}
-
-impl LeastSquaresProblem<f64, Dyn, Dyn> for CandidateProblem<'_, '_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, x: &DVector<f64>) {
-        self.theta.copy_from(x);
-    }
-
-    fn params(&self) -> DVector<f64> {
-        self.theta.clone()
-    }
-
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let mut r = DVector::zeros(self.setup.train_idx.len());
-        self.residuals_into(self.theta.as_slice(), r.as_mut_slice());
-        r.iter().all(|v| v.is_finite()).then_some(r)
-    }
-
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let steps: Vec<f64> = self.theta.iter().map(|t| 1e-3 * (1.0 + t.abs())).collect();
-        let jac = crate::identify::lsq::forward_difference_jacobian(
-            self.theta.as_slice(),
-            &steps,
-            self.setup.train_idx.len(),
-            &|t, out| self.residuals_into(t, out),
-        );
-        jac.iter().all(|v| v.is_finite()).then_some(jac)
     }
 }
 
@@ -407,15 +373,22 @@ pub(super) fn evaluate_candidate(
                 coeffs,
                 kind,
                 base: current,
-                theta: DVector::from_vec(start),
                 fixed,
             };
-            let (problem, report) = LevenbergMarquardt::new()
-                .with_patience(cfg.patience)
-                .minimize(problem);
-            let cost = report.objective_function;
+            let minimum = lsq::minimize(
+                &lsq::Residuals {
+                    m: setup.train_idx.len(),
+                    residuals: &|t, out| problem.residuals_into(t, out),
+                    step: &|_, v| 1e-3 * (1.0 + v.abs()),
+                    on_evaluation: &|_, _| {},
+                    non_finite: lsq::NonFinite::Refuse,
+                },
+                &start,
+                cfg.patience,
+            );
+            let cost = minimum.cost;
             if cost.is_finite() && best.as_ref().is_none_or(|(c, _)| cost < *c) {
-                best = Some((cost, problem.full(problem.theta.as_slice())));
+                best = Some((cost, problem.full(&minimum.theta)));
             }
         }
         best.map(|(_, t)| t).unwrap_or_default()

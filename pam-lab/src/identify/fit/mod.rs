@@ -347,6 +347,7 @@ pub fn fit_with_progress(
             residuals: &|t, out| problem.residuals_at(t, out),
             step: &|j, v| 1e-7 * v.abs().max(param_scale(j, &fixed)),
             on_evaluation: &on_evaluation,
+            non_finite: lsq::NonFinite::Penalise,
         },
         &theta0,
         cfg.patience,
