@@ -164,12 +164,16 @@ pub fn stage_fit(
             let slack = fit::slack_mask(&record.samples, r.test_kind);
             crate::report::plot::fit_plot(
                 p,
-                record,
-                &r.split,
-                &r.heldout,
-                &slack,
-                &r.coeffs,
-                cfg.load_bin_n,
+                &crate::report::plot::FitPlot {
+                    record,
+                    split: &r.split,
+                    heldout: &r.heldout,
+                    slack: &slack,
+                    coeffs: &r.coeffs,
+                    shape: r.constraint_shape.as_ref(),
+                    test: r.test_kind,
+                    load_bin_n: cfg.load_bin_n,
+                },
             )
         })?;
     }

@@ -234,12 +234,12 @@ pub fn generate(
 ) -> Record {
     let coeffs = Coeffs::new(*params).expect("generate: params must validate");
     let mut rng = Rng::new(seed);
-    let mut cache = crate::evaluate::errors::ModelCache::new(&coeffs);
+    let mut cache = crate::evaluate::errors::ModelCache::new(&coeffs, None);
     let samples = protocol
         .drive()
         .into_iter()
         .map(|(t_s, load_n, p, br)| {
-            let x = f64::from(cache.get(load_n as f32).contraction(p as f32, br));
+            let x = f64::from(cache.contraction(p as f32, load_n as f32, br));
             Sample {
                 t_s,
                 load_n,

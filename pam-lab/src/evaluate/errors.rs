@@ -86,36 +86,77 @@ pub fn load_bin(load_n: f64, bin_n: f64) -> f64 {
     (load_n / bin_n).round() * bin_n
 }
 
-/// A cache of pam-core load models by exact load value (isotonic records have
-/// few distinct loads; building a model costs 66 forward evaluations).
+/// The static model (the paper's, with the static shape when it has one)
+/// evaluated as the chip evaluates it, with pam-core's load models and
+/// shape inverses cached by exact load value (isotonic records have few
+/// distinct loads; building a model costs 66 forward evaluations).
 pub struct ModelCache<'c> {
     coeffs: &'c Coeffs,
-    models: HashMap<u32, LoadModel>,
+    shape: Option<&'c ConstraintShape>,
+    models: HashMap<u32, (LoadModel, Option<ShapeInverse>)>,
 }
 
 impl<'c> ModelCache<'c> {
-    /// An empty cache for `coeffs`.
-    pub fn new(coeffs: &'c Coeffs) -> Self {
+    /// An empty cache for `coeffs` and `shape`.
+    pub fn new(coeffs: &'c Coeffs, shape: Option<&'c ConstraintShape>) -> Self {
         ModelCache {
             coeffs,
+            shape,
             models: HashMap::new(),
         }
     }
 
-    /// The model at `load_n` (clamped to the calibrated range).
-    pub fn get(&mut self, load_n: f32) -> &LoadModel {
-        let coeffs = self.coeffs;
-        self.models
-            .entry(load_n.to_bits())
-            .or_insert_with(|| coeffs.load_model_clamped(load_n))
+    /// The model at `load_n` (clamped to the calibrated range) and the
+    /// shape's inverse there.
+    pub fn get(&mut self, load_n: f32) -> &(LoadModel, Option<ShapeInverse>) {
+        let (coeffs, shape) = (self.coeffs, self.shape);
+        self.models.entry(load_n.to_bits()).or_insert_with(|| {
+            let params = coeffs.params();
+            let load = load_n.clamp(params.min_load_n, params.max_load_n);
+            let load = if load.is_finite() {
+                load
+            } else {
+                params.min_load_n
+            };
+            (
+                coeffs.load_model_clamped(load_n),
+                shape.map(|s| s.inverse_at_load(params, load)),
+            )
+        })
+    }
+
+    /// The pressure at the muscle's `contraction` under `load_n` on
+    /// `branch`, MPa: as the feedforward computes it (the contraction held
+    /// to the model's stroke, the shape's inverse, the branch, eqs. 25–26).
+    pub fn pressure_mpa(&mut self, contraction: f32, load_n: f32, branch: Branch) -> f32 {
+        let (m, inverse) = self.get(load_n);
+        let x_model = match inverse {
+            Some(inverse) => {
+                let x = contraction.clamp(m.root_contraction(), m.max_contraction());
+                inverse.model_contraction(m, x)
+            }
+            None => contraction,
+        };
+        m.pressure_mpa(x_model, branch)
+    }
+
+    /// The muscle's contraction at `pressure_mpa` under `load_n` on
+    /// `branch`: the model's inverse, then the shape's map.
+    pub fn contraction(&mut self, pressure_mpa: f32, load_n: f32, branch: Branch) -> f32 {
+        let (m, inverse) = self.get(load_n);
+        let x = m.contraction(pressure_mpa, branch);
+        match inverse {
+            Some(inverse) => inverse.apply(m, x),
+            None => x,
+        }
     }
 }
 
 /// Errors of `coeffs` (with the static `shape` correction, when given) on
-/// the samples `i` with `branch[i]` labelled and `include(i)` true. The
-/// shape is evaluated as the chip evaluates it: its inverse at the load for
-/// the pressure at the measured contraction (the feedforward's direction),
-/// its map for the contraction at the measured pressure.
+/// the samples `i` with `branch[i]` labelled and `include(i)` true,
+/// evaluated as the chip evaluates them ([`ModelCache`]): the pressure at
+/// the measured contraction (the feedforward's direction) and the
+/// contraction at the measured pressure.
 pub fn error_table(
     coeffs: &Coeffs,
     shape: Option<&ConstraintShape>,
@@ -124,8 +165,7 @@ pub fn error_table(
     include: impl Fn(usize) -> bool,
     load_bin_n: f64,
 ) -> ErrorTable {
-    let mut cache = ModelCache::new(coeffs);
-    let mut shapes: HashMap<u32, ShapeInverse> = HashMap::new();
+    let mut cache = ModelCache::new(coeffs, shape);
     let mut groups: BTreeMap<(i64, u8), Acc> = BTreeMap::new();
     let mut total = Acc::default();
     for (i, s) in samples.iter().enumerate() {
@@ -136,28 +176,8 @@ pub fn error_table(
             continue;
         }
         let load = s.load_n as f32;
-        let m = cache.get(load);
-        let (x_model, x_of) = match shape {
-            Some(shape) => {
-                let params = coeffs.params();
-                let load = load.clamp(params.min_load_n, params.max_load_n);
-                let inverse = *shapes
-                    .entry(load.to_bits())
-                    .or_insert_with(|| shape.inverse_at_load(params, load));
-                // As the feedforward: the contraction held to the model's
-                // stroke, then the shape's inverse.
-                let x = (s.contraction as f32).clamp(m.root_contraction(), m.max_contraction());
-                let x_model = inverse.model_contraction(m, x);
-                let x = inverse.apply(m, m.contraction(s.pressure_mpa as f32, br));
-                (x_model, x)
-            }
-            None => (
-                s.contraction as f32,
-                m.contraction(s.pressure_mpa as f32, br),
-            ),
-        };
-        let ep = f64::from(m.pressure_mpa(x_model, br)) - s.pressure_mpa;
-        let ex = f64::from(x_of) - s.contraction;
+        let ep = f64::from(cache.pressure_mpa(s.contraction as f32, load, br)) - s.pressure_mpa;
+        let ex = f64::from(cache.contraction(s.pressure_mpa as f32, load, br)) - s.contraction;
         let key = (
             (s.load_n / load_bin_n).round() as i64,
             u8::from(br == Branch::Expansion),

@@ -2,7 +2,10 @@
 //! a staging path of their [`crate::output::OutputSet`]).
 //!
 //! * [`fit_plot`]: pressure against contraction, data and model per load, as
-//!   the paper's Fig. 5 (held-out samples dark, training samples light).
+//!   the paper's Fig. 5 (held-out samples dark, training samples light); for
+//!   an isometric test pressure against force per held contraction, the
+//!   test's own view. The model is drawn as the chip evaluates it, its
+//!   static shape included.
 //! * [`simulate_plot`]: measured and predicted contraction over time, and the
 //!   error.
 
@@ -10,10 +13,13 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{anyhow, Result};
+use pam_core::effects::ConstraintShape;
 use pam_core::{Branch, Coeffs};
 use plotters::prelude::*;
 
+use crate::evaluate::errors::ModelCache;
 use crate::evaluate::simulate::SimSample;
+use crate::identify::fit::TestKind;
 use crate::record::split::Split;
 use crate::record::Record;
 
@@ -55,16 +61,45 @@ fn color(k: usize) -> RGBColor {
     C[k % C.len()]
 }
 
-/// Data against model per load bin (up to 8 bins, the most sampled).
-pub fn fit_plot(
-    path: &Path,
-    record: &Record,
-    split: &Split,
-    heldout: &[bool],
-    slack: &[bool],
-    coeffs: &Coeffs,
-    load_bin_n: f64,
-) -> Result<()> {
+/// What [`fit_plot`] draws: the record and how the fit labelled it, and the
+/// model.
+pub struct FitPlot<'a> {
+    /// The record.
+    pub record: &'a Record,
+    /// Its branch split.
+    pub split: &'a Split,
+    /// Held-out samples.
+    pub heldout: &'a [bool],
+    /// Slack samples (an isometric test's force at the load cell's floor).
+    pub slack: &'a [bool],
+    /// The model and its static shape.
+    pub coeffs: &'a Coeffs,
+    /// The static shape, when fitted.
+    pub shape: Option<&'a ConstraintShape>,
+    /// The kind of test.
+    pub test: TestKind,
+    /// Load bins, N.
+    pub load_bin_n: f64,
+}
+
+/// Data against model: per load bin (up to 8, spread over the range),
+/// pressure against contraction; for an isometric test per held
+/// contraction (up to 8), pressure against force.
+pub fn fit_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
+    if plot.test == TestKind::Isometric {
+        return isometric_plot(path, plot);
+    }
+    let FitPlot {
+        record,
+        split,
+        heldout,
+        slack,
+        coeffs,
+        shape,
+        load_bin_n,
+        ..
+    } = *plot;
+    let mut model = ModelCache::new(coeffs, shape);
     let samples = &record.samples;
     // A slack muscle's samples (an isometric test's force at the load
     // cell's floor, `fit::slack_mask`) are no samples of the model: not drawn.
@@ -146,12 +181,15 @@ pub fn fit_plot(
                 format!("{load:.0} N ({} samples)", bins[k].1),
                 col.stroke_width(3),
             ));
-            let m = coeffs.load_model_clamped(load as f32);
+            let (m, inverse) = model.get(load as f32);
             for (br, width) in [(Branch::Contraction, 3), (Branch::Expansion, 1)] {
                 let (r, rx) = (m.root_contraction(), m.max_contraction());
+                // The model's stroke, each point moved by the shape to the
+                // muscle's contraction.
                 let curve = (0..=300).map(|j| {
                     let x = r + (rx - r) * j as f32 / 300.0;
-                    (f64::from(x), f64::from(m.pressure_mpa(x, br)))
+                    let muscle = inverse.as_ref().map_or(x, |s| s.apply(m, x));
+                    (f64::from(muscle), f64::from(m.pressure_mpa(x, br)))
                 });
                 chart
                     .draw_series(LineSeries::new(curve, col.stroke_width(width)))
@@ -168,6 +206,117 @@ pub fn fit_plot(
         root.present().map_err(e)?;
         Ok(())
     })()
+}
+
+/// An isometric test: pressure against force at each held contraction (up
+/// to 8, spread over the range), data and the model's two branches.
+fn isometric_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
+    let FitPlot {
+        record,
+        split,
+        heldout,
+        slack,
+        coeffs,
+        shape,
+        ..
+    } = *plot;
+    let mut model = ModelCache::new(coeffs, shape);
+    let samples = &record.samples;
+    let drawn = |i: usize| split.branch[i].is_some() && !slack.get(i).copied().unwrap_or(false);
+    // The held contractions: exact values with a share of the samples.
+    let mut counts: BTreeMap<u64, usize> = BTreeMap::new();
+    for (i, s) in samples.iter().enumerate() {
+        if drawn(i) {
+            *counts.entry(s.contraction.to_bits()).or_default() += 1;
+        }
+    }
+    let classified: usize = counts.values().sum();
+    let min_count = (classified / 100).max(20);
+    let mut held: Vec<(f64, usize)> = counts
+        .into_iter()
+        .filter(|c| c.1 >= min_count)
+        .map(|(bits, n)| (f64::from_bits(bits), n))
+        .collect();
+    held.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if held.len() > 8 {
+        let n = held.len();
+        held = (0..8).map(|k| held[k * (n - 1) / 7]).collect();
+    }
+    let thin = (samples.len() / MAX_POINTS).max(1);
+    let pmax = f64::from(coeffs.params().points.max_pressure_mpa);
+    let fmax = samples
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| drawn(*i))
+        .fold(0.0f64, |a, (_, s)| a.max(s.load_n));
+    let title = format!(
+        "{}: data and fitted model per held contraction (isometric)",
+        record.source
+    );
+    ensure_font();
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let root = root.titled(&title, ("sans-serif", 18)).map_err(e)?;
+    let (plot_area, legend_area) = root.split_horizontally(SIZE.0 - LEGEND_W);
+    let mut entries: Vec<(String, ShapeStyle)> = Vec::new();
+    let mut chart = ChartBuilder::on(&plot_area)
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..(1.05 * fmax.max(1.0)), (-0.02 * pmax)..(1.05 * pmax))
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("force on the muscle, the load (N)")
+        .y_desc("pressure (MPa)")
+        .draw()
+        .map_err(e)?;
+    for (k, &(x, n)) in held.iter().enumerate() {
+        let col = color(k);
+        let pts = |held_out: bool| {
+            samples
+                .iter()
+                .enumerate()
+                .step_by(thin)
+                .filter(move |(i, s)| {
+                    drawn(*i) && heldout[*i] == held_out && s.contraction.to_bits() == x.to_bits()
+                })
+                .map(move |(_, s)| {
+                    Circle::new(
+                        (s.load_n, s.pressure_mpa),
+                        1,
+                        col.mix(if held_out { 0.8 } else { 0.15 }).filled(),
+                    )
+                })
+        };
+        chart.draw_series(pts(false)).map_err(e)?;
+        chart.draw_series(pts(true)).map_err(e)?;
+        entries.push((
+            format!("contraction {x:.4} ({n} samples)"),
+            col.stroke_width(3),
+        ));
+        for (br, width) in [(Branch::Contraction, 3), (Branch::Expansion, 1)] {
+            let curve: Vec<(f64, f64)> = (0..=200)
+                .map(|j| {
+                    let load = fmax * f64::from(j) / 200.0;
+                    let p = model.pressure_mpa(x as f32, load as f32, br);
+                    (load, f64::from(p))
+                })
+                .collect();
+            chart
+                .draw_series(LineSeries::new(curve, col.stroke_width(width)))
+                .map_err(e)?;
+        }
+    }
+    entries.push(("thick: contraction branch".into(), BLACK.stroke_width(3)));
+    entries.push(("thin: expansion branch".into(), BLACK.stroke_width(1)));
+    entries.push((
+        "dots: data, dark held out".into(),
+        BLACK.mix(0.5).stroke_width(1),
+    ));
+    legend(&legend_area, &entries)?;
+    root.present().map_err(e)?;
+    Ok(())
 }
 
 /// Measured and predicted contraction over time, and the error.

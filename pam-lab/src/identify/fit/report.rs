@@ -35,7 +35,18 @@ impl ShapeFit {
 
     /// One sentence for a report.
     pub fn statement(&self) -> String {
-        let ratio = self.systematic_pressure_rms_mpa / self.pressure_noise_mpa.max(1e-12);
+        let noise = self.pressure_noise_mpa.max(1e-12);
+        let ratio = self.systematic_pressure_rms_mpa / noise;
+        if let Some(cubic) = self.cubic_only_systematic_pressure_rms_mpa {
+            return format!(
+                "the paper's cubic alone left a systematic pressure misfit of {cubic:.4} MPa RMS \
+                 ({:.1}x the {:.4} MPa noise); with the static shape's stroke table {:.4} MPa \
+                 ({ratio:.1}x)",
+                cubic / noise,
+                self.pressure_noise_mpa,
+                self.systematic_pressure_rms_mpa
+            );
+        }
         if self.cubic_cannot_follow() {
             format!(
                 "the paper's cubic cannot follow this muscle's static curve: the fit is the closest \

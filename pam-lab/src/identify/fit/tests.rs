@@ -127,6 +127,25 @@ fn noise_free_data_recovers_the_parameters() {
 }
 
 #[test]
+fn a_muscle_of_the_papers_family_gets_no_static_shape() {
+    // Noisy records of the paper's own model: the cubic follows them, the
+    // stroke table is neither tried nor written (the paper's model, blob
+    // version 1).
+    for seed in 1..=3 {
+        let rec = generate(
+            &Params::DEFAULT,
+            &Protocol::quick(&[100.0, 300.0, 600.0]),
+            0.002,
+            0.0005,
+            seed,
+        );
+        let r = fit(&rec, &FitConfig::default()).unwrap();
+        assert!(r.constraint_shape.is_none(), "{}", r.shape.statement());
+        assert_eq!(r.effects(), pam_core::Effects::NONE);
+    }
+}
+
+#[test]
 fn one_load_only_is_refused_with_a_clear_message() {
     let rec = generate(
         &Params::DEFAULT,
