@@ -163,7 +163,7 @@ impl ModelInverse {
     /// the load (or the minimum load or load step of `params`) differs from
     /// the last call's, that is once per load switch, and kept in `state`:
     /// the per-period work is three comparisons. The model check's band
-    /// ([`ShapeInverse::shape`]) and [`Self::pressure_mpa`] share it.
+    /// ([`ShapeInverse::apply`]) and [`Self::pressure_mpa`] share it.
     #[inline]
     pub fn shape_at_load<'s, const N: usize>(
         &self,

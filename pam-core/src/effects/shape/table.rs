@@ -218,7 +218,7 @@ pub fn inverse_f64(k: &[f64; TABLE_KNOTS], v: f64) -> (f64, f64) {
     )
 }
 
-/// [`StrokeTable::at_load`] in `f64` on knots per load `nodes`, at the load
+/// [`StrokeTable::knots_at_load`] in `f64` on knots per load `nodes`, at the load
 /// fraction `f = (L − L_min)/(L_max − L_min)` (clamped; NaN → 0).
 pub fn at_fraction_f64(nodes: &[[f64; TABLE_KNOTS]; TABLE_LOADS], f: f64) -> [f64; TABLE_KNOTS] {
     let f = if f.is_finite() {
