@@ -378,12 +378,36 @@ pub fn fit_with_progress(
             static_shape::fit_static_shape(&train, &fixed, &theta, &anchor, cfg.patience, progress)
         {
             evaluations += stage.evaluations;
-            constraint_shape = Some(stage.shape);
-            if let Some(refit) = stage.refit {
-                theta = refit.theta;
-                params = refit.params;
-                coeffs = refit.coeffs;
-                was_inside = refit.was_inside;
+            // Judged on samples it was not fitted to, where there are any:
+            // the held-out part's primary error (pressure for an isometric
+            // test, contraction otherwise) must fall. A systematic misfit
+            // that is a dynamic effect's (creep, rate) is partly absorbed by
+            // the table on the training part and not on the held-out one.
+            let primary = |c: &Coeffs, shape: Option<&pam_core::effects::ConstraintShape>| {
+                let t = error_table(
+                    c,
+                    shape,
+                    samples,
+                    &split.branch,
+                    |i| heldout[i] && !slack[i],
+                    bin,
+                );
+                match test {
+                    TestKind::Isometric => t.total.pressure_rms_mpa,
+                    _ => t.total.contraction_rms,
+                }
+            };
+            let refit_coeffs = stage.refit.as_ref().map_or(coeffs, |r| r.coeffs);
+            let earns_heldout = !heldout.iter().any(|h| *h)
+                || primary(&refit_coeffs, Some(&stage.shape)) < primary(&coeffs, None);
+            if earns_heldout {
+                constraint_shape = Some(stage.shape);
+                if let Some(refit) = stage.refit {
+                    theta = refit.theta;
+                    params = refit.params;
+                    coeffs = refit.coeffs;
+                    was_inside = refit.was_inside;
+                }
             }
         }
     }
