@@ -37,10 +37,10 @@
 //! # Version 3: a constraint shape with its stroke table
 //!
 //! Version 2's layout with the payload extended by the shape's stroke table
-//! ([`crate::effects::shape::StrokeTable`]: 28 `f32` knots, load by load),
-//! [`BLOB_V3_LEN`] bytes: bytes 0..152 as version 2 (version field 3,
-//! payload length [`PAYLOAD_V3_LEN`]), 152..264 the knots, 264..268 the
-//! CRC-32 of bytes 0..264. Written only for a shape whose table is not the
+//! ([`crate::effects::shape::StrokeTable`]: [`TABLE_FIELDS`] = 66 `f32`
+//! knots, load by load), [`BLOB_V3_LEN`] = 420 bytes: bytes 0..152 as
+//! version 2 (version field 3, payload length [`PAYLOAD_V3_LEN`]), 152..416
+//! the knots, 416..420 the CRC-32 of bytes 0..416. Written only for a shape whose table is not the
 //! identity ([`encode_model`] picks the version), so every model has one
 //! encoding; a version-3 blob without a shape or with the identity table is
 //! refused.
@@ -517,8 +517,8 @@ mod tests {
         let mut table = StrokeTable::NEUTRAL;
         for (i, node) in table.knots.iter_mut().enumerate() {
             for (j, v) in node.iter_mut().enumerate() {
-                let u = (j + 1) as f32 / 8.0;
-                *v = u + 0.2 * (i as f32 + 1.0) * u * (1.0 - u);
+                let u = (j + 1) as f32 / crate::effects::shape::table::TABLE_SEGMENTS as f32;
+                *v = u + 0.1 * (i as f32 + 1.0) * u * (1.0 - u);
             }
         }
         Effects {

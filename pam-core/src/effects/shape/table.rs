@@ -25,12 +25,12 @@ use crate::math::clamp;
 use crate::params::Params;
 
 /// Equal segments of the stroke fraction.
-pub const TABLE_SEGMENTS: usize = 8;
+pub const TABLE_SEGMENTS: usize = 12;
 /// Interior knots per load (the ends are 0 and 1).
 pub const TABLE_KNOTS: usize = TABLE_SEGMENTS - 1;
 /// Loads the table is given at: the minimum calibrated load, the maximum,
 /// and evenly between.
-pub const TABLE_LOADS: usize = 4;
+pub const TABLE_LOADS: usize = 6;
 /// Smallest slope of a segment, relative to the identity's (`1/K` of the
 /// fraction per segment): the map is strictly increasing, and its inverse's
 /// slope at most `1/MIN_TABLE_SLOPE`.
@@ -250,9 +250,11 @@ mod tests {
             }
             k
         };
-        StrokeTable {
-            knots: [node(0.9), node(0.6), node(0.3), node(0.0)],
+        let mut knots = [[0.0; TABLE_KNOTS]; TABLE_LOADS];
+        for (i, k) in knots.iter_mut().enumerate() {
+            *k = node(0.9 * (1.0 - i as f32 / (TABLE_LOADS - 1) as f32));
         }
+        StrokeTable { knots }
     }
 
     #[test]
@@ -304,7 +306,7 @@ mod tests {
         let p = Params::DEFAULT;
         assert_eq!(t.knots_at_load(&p, p.min_load_n - 50.0), t.knots[0]);
         assert_eq!(t.knots_at_load(&p, f32::NAN), t.knots[0]);
-        assert_eq!(t.knots_at_load(&p, p.max_load_n + 50.0), t.knots[3]);
+        assert_eq!(t.knots_at_load(&p, p.max_load_n + 50.0), t.knots[TABLE_LOADS - 1]);
         let n = StrokeTable::NEUTRAL;
         assert!(is_identity(&n.knots_at_load(&p, 333.3)));
     }
