@@ -306,7 +306,10 @@ mod tests {
         let p = Params::DEFAULT;
         assert_eq!(t.knots_at_load(&p, p.min_load_n - 50.0), t.knots[0]);
         assert_eq!(t.knots_at_load(&p, f32::NAN), t.knots[0]);
-        assert_eq!(t.knots_at_load(&p, p.max_load_n + 50.0), t.knots[TABLE_LOADS - 1]);
+        assert_eq!(
+            t.knots_at_load(&p, p.max_load_n + 50.0),
+            t.knots[TABLE_LOADS - 1]
+        );
         let n = StrokeTable::NEUTRAL;
         assert!(is_identity(&n.knots_at_load(&p, 333.3)));
     }
