@@ -12,16 +12,16 @@ pub const PAM_PARAMS: Params = Params {
     max_load_n: 600.0,
     load_step_n: 100.0,
     points: CriticalPoints {
-        root_contraction: 0.015128744,
-        max_contraction: 0.22979991,
+        root_contraction: 0.01597626,
+        max_contraction: 0.2298047,
         max_pressure_mpa: 0.5009666,
-        tangency: Point { contraction: 0.06820464, pressure_mpa: 0.19581091 },
-        inflection: Point { contraction: 0.121280536, pressure_mpa: 0.24320877 },
+        tangency: Point { contraction: 0.06883861, pressure_mpa: 0.19357781 },
+        inflection: Point { contraction: 0.12170096, pressure_mpa: 0.2432827 },
     },
-    root_regression_per_step: 0.0047306623,
-    max_regression_per_step: 0.016510796,
-    c_growth_per_step: 0.18090485,
-    ellipse_height_mpa: 0.029676748,
+    root_regression_per_step: 0.0053453753,
+    max_regression_per_step: 0.01637935,
+    c_growth_per_step: 0.15559754,
+    ellipse_height_mpa: 0.030081466,
 };
 
 /// Shape of the non-local memory (chosen on the training samples).
