@@ -28,6 +28,7 @@
 // `!(x > 0.0)` is deliberate in validation: it is also true for NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod boot;
 pub mod controller;
 pub mod crash;
 pub mod exercise;

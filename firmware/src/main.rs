@@ -2,13 +2,14 @@
 //! controller (`cargo fw-build`, `cargo fw-run`; feature `chip`).
 //!
 //! Boot sets up the board ([`firmware::board::init`]: clocks, valves in the
-//! safe state, three ADCs, TIM2), then reads the coefficient blob from its
-//! flash sector and refuses it unless magic, version, length, CRC-32 and the
-//! parameter validation all pass; a refused blob leaves the valves in the
-//! safe state, is reported through defmt, and no control runs. With a good
-//! blob the TIM2 update interrupt runs one control step per millisecond:
-//! three ADC conversions, the controller, two PWM duties. On any fault the
-//! controller puts the valves in its safe state in that same step.
+//! safe state, three ADCs, TIM2), then boots the coefficient blob from its
+//! flash sector ([`firmware::boot`]), which refuses it unless magic,
+//! version, length, CRC-32 and the parameter validation all pass; a
+//! refused blob leaves the valves in the safe state, is reported through
+//! defmt, and no control runs. With a good blob the TIM2 update interrupt
+//! runs one control step per millisecond: three ADC conversions, the
+//! controller, two PWM duties. On any fault the controller puts the valves
+//! in its safe state in that same step.
 //!
 //! The set-point is the exercise of [`firmware::exercise::triangle`]
 //! (contraction 0.06 → 0.16 → 0.06, 4 s period, repeated); replace
@@ -50,6 +51,7 @@ use cortex_m_rt::entry;
 use critical_section::Mutex;
 use defmt_rtt as _;
 use firmware::board::{self, pam_board_control_step, BoardIo, Watchdog};
+use firmware::boot::BootError;
 use firmware::controller::{ControllerConfig, Fault};
 use firmware::crash::Exception;
 use firmware::hal::{LoadCell, SafeState, Valve};
@@ -104,7 +106,7 @@ fn halt() -> ! {
 
 #[entry]
 fn main() -> ! {
-    let mut config = ControllerConfig::DEFAULT;
+    let config = ControllerConfig::DEFAULT;
     let safe = config.safety.safe_state;
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         halt()
@@ -125,13 +127,17 @@ fn main() -> ! {
     );
 
     let blob = firmware::coeffs_blob();
-    let coeffs = match firmware::controller::model_from_blob(blob, config.feedforward) {
-        Ok((c, feedforward)) => {
-            // A model with non-local memory runs the memory feedforward.
-            config.feedforward = feedforward;
-            c
-        }
-        Err(e) => {
+    // The tracker starts at the measured load (clamped to the calibrated
+    // range); a failed read starts it at the lightest load, and the first
+    // step reports the fault. The load is read only once the blob passed.
+    let booted = firmware::boot::boot(blob, config, |coeffs| match board.io.load.read_load_n() {
+        Ok(l) if l.is_finite() => l,
+        _ => coeffs.params().min_load_n,
+    });
+    let (mut ctl, load_n) = match booted {
+        // A model with effects runs the feedforward that inverts them.
+        Ok(b) => (b.controller, b.initial_load_n),
+        Err(BootError::Blob(e)) => {
             defmt::error!(
                 "boot: coefficient blob refused: {}; valves safe, no control",
                 e
@@ -139,17 +145,7 @@ fn main() -> ! {
             let _ = board.io.valve.set_safe(safe);
             halt()
         }
-    };
-    // The tracker starts at the measured load (clamped to the calibrated
-    // range); a failed read starts it at the lightest load, and the first
-    // step reports the fault.
-    let load_n = match board.io.load.read_load_n() {
-        Ok(l) if l.is_finite() => l,
-        _ => coeffs.params().min_load_n,
-    };
-    let mut ctl = match Controller::new(coeffs, config, load_n) {
-        Ok(c) => c,
-        Err(e) => {
+        Err(BootError::Controller(e)) => {
             defmt::error!("boot: controller refused: {}; valves safe, no control", e);
             let _ = board.io.valve.set_safe(safe);
             halt()

@@ -3,14 +3,14 @@
 //! under QEMU's `netduinoplus2` (feature `qemu`, `cargo fw-qemu`). The board
 //! controller that drives real valves is `src/main.rs` (`cargo fw-build`).
 //!
-//! Boot reads the coefficient blob from its flash sector and refuses it
-//! unless magic, version, length, CRC-32 and the parameter validation all
-//! pass; a refused blob leaves the valves in the safe state and the image
-//! stops. With a good blob the image runs [`firmware::scenario`]: the
-//! controller drives the simulated muscle through the triangle trajectory,
-//! faults and recoveries are logged through defmt (and, under QEMU, over
-//! semihosting), and the result decides the exit code under QEMU (0 only if
-//! the run passes).
+//! Boot decodes the coefficient blob from its flash sector once
+//! ([`firmware::boot`]) and refuses it unless magic, version, length,
+//! CRC-32 and the parameter validation all pass; a refused blob leaves the
+//! valves in the safe state and the image stops. With a good blob the image
+//! runs [`firmware::scenario`]: the controller drives the simulated muscle
+//! through the triangle trajectory, faults and recoveries are logged through
+//! defmt (and, under QEMU, over semihosting), and the result decides the
+//! exit code under QEMU (0 only if the run passes).
 //!
 //! With feature `qemu-panic` (`cargo fw-qemu-panic`) the image instead runs
 //! the controller on the simulated muscle with the inlet filling, then
@@ -47,6 +47,7 @@ use firmware::hal::{SafeState, Valve, ValvePair, ValvePairConfig};
 use firmware::plant::StaticPwm;
 use firmware::plant::{SimBus, SimPwm};
 use firmware::scenario::{self, Report};
+#[cfg(feature = "qemu")]
 use firmware::Controller;
 #[cfg(not(feature = "qemu"))]
 use panic_probe as _;
@@ -128,15 +129,12 @@ fn report(name: &str, r: &Report) {
 /// The `qemu-panic`, `qemu-nmi` and `qemu-unhandled` runs: control on the
 /// simulated muscle, set-point at the top of the stroke, so the inlet is
 /// filling; then a deliberate panic, or the pended exception ([`PENDED`]).
+/// `ctl` is the controller boot built from the blob.
 #[cfg(feature = "qemu")]
-fn fault_demo(blob: &[u8]) -> ! {
+fn fault_demo(mut ctl: Controller) -> ! {
     use firmware::controller::Io;
     use firmware::hal::PressureCalibration;
     use firmware::plant::{MusclePlant, Noise, PlantConfig, SimContraction, SimLoad, SimPressure};
-    let Ok(mut ctl) = Controller::from_blob(blob, ControllerConfig::DEFAULT, scenario::LOAD_N)
-    else {
-        finish(false)
-    };
     let Ok(valve) = ValvePair::new(
         StaticPwm(&INLET_DUTY),
         StaticPwm(&EXHAUST_DUTY),
@@ -241,27 +239,17 @@ fn main() -> ! {
     let _ = valve.set_safe(safe);
 
     let blob = firmware::coeffs_blob();
-    let ff = match firmware::controller::model_from_blob(blob, Feedforward::Hysteresis) {
-        Ok((_, ff)) => ff,
+    // Decoded once: the controller of the fault demos, and the effects the
+    // acceptance line names.
+    let booted = match firmware::boot::boot(blob, ControllerConfig::DEFAULT, |_| scenario::LOAD_N) {
+        Ok(b) => b,
         Err(e) => {
-            log!(error, "boot: coefficient blob refused: {}", e);
+            log!(error, "boot: coefficient blob refused: {}", e.reason());
             let _ = valve.set_safe(SafeState::Exhaust);
             finish(false)
         }
     };
-    if let Err(e) = Controller::from_blob(blob, ControllerConfig::DEFAULT, scenario::LOAD_N) {
-        log!(error, "boot: coefficient blob refused: {}", e);
-        let _ = valve.set_safe(SafeState::Exhaust);
-        finish(false)
-    }
-    let effects = match ff {
-        Feedforward::HysteresisMemory(m) => pam_core::Effects {
-            memory: Some(m),
-            ..pam_core::Effects::NONE
-        },
-        Feedforward::HysteresisEffects(e) => e,
-        _ => pam_core::Effects::NONE,
-    };
+    let effects = booted.effects;
     let with_effects = effects != pam_core::Effects::NONE;
     let named = |on: bool, name: &'static str| if on { name } else { "" };
     log!(
@@ -277,7 +265,7 @@ fn main() -> ! {
     );
     #[cfg(feature = "qemu")]
     if cfg!(feature = "qemu-panic") || PENDED.is_some() {
-        fault_demo(blob)
+        fault_demo(booted.controller)
     }
 
     let run = |ff: Feedforward, events: bool| {

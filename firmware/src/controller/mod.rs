@@ -69,7 +69,7 @@ pub use monitor::{Check, Fault, SensorId};
 use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, Valve};
 use law::Law;
 use monitor::Monitor;
-use pam_core::{Branch, Coeffs, Effects, Tracker, Update};
+use pam_core::{Branch, Coeffs, Tracker, Update};
 
 /// Work units of a load switch's inverse-table build per step (one forward
 /// evaluation or one Newton step each, see [`Tracker::set_build_budget`]),
@@ -117,7 +117,8 @@ fn table_build_units(feedforward: &Feedforward) -> u16 {
 /// * the comparison modes [`Feedforward::Constraint`] and
 ///   [`Feedforward::Off`] stay as configured.
 ///
-/// The effects are validated here (what `decode_model` checks).
+/// The effects are validated here (what `decode_model` checks). The same
+/// decoding and rules as [`crate::boot::boot`], without building the controller.
 ///
 /// ```
 /// use firmware::controller::{model_from_blob, Feedforward};
@@ -139,31 +140,8 @@ pub fn model_from_blob(
     blob: &[u8],
     feedforward: Feedforward,
 ) -> Result<(Coeffs, Feedforward), ConfigError> {
-    let (params, effects) =
-        pam_core::blob::decode_model_params(blob).map_err(ConfigError::Coefficients)?;
-    effects.validate().map_err(ConfigError::Coefficients)?;
-    let coeffs = Coeffs::new(params).map_err(ConfigError::Coefficients)?;
-    let memory_only = Effects {
-        memory: effects.memory,
-        ..Effects::NONE
-    } == effects;
-    let feedforward = match (effects.memory, feedforward) {
-        (_, ff) if effects == Effects::NONE => ff,
-        (
-            Some(m),
-            Feedforward::Hysteresis
-            | Feedforward::HysteresisMemory(_)
-            | Feedforward::HysteresisEffects(_),
-        ) if memory_only => Feedforward::HysteresisMemory(m),
-        (
-            _,
-            Feedforward::Hysteresis
-            | Feedforward::HysteresisMemory(_)
-            | Feedforward::HysteresisEffects(_),
-        ) => Feedforward::HysteresisEffects(effects),
-        (_, ff) => ff,
-    };
-    Ok((coeffs, feedforward))
+    let (coeffs, effects) = crate::boot::decode(blob)?;
+    Ok((coeffs, crate::boot::feedforward_for(&effects, feedforward)))
 }
 
 /// What one step did; the firmware logs `new_fault` and `recovered`.
@@ -259,20 +237,15 @@ impl Controller {
     /// parameters and effects are validated), with the feedforward the
     /// blob's model asks for ([`model_from_blob`]). A blob that fails any
     /// check, or whose model this controller cannot run, is refused.
+    /// [`crate::boot::boot`] with a fixed initial load.
     pub fn from_blob(
         blob: &[u8],
         config: ControllerConfig,
         initial_load_n: f32,
     ) -> Result<Controller, ConfigError> {
-        let (coeffs, feedforward) = model_from_blob(blob, config.feedforward)?;
-        Controller::new(
-            coeffs,
-            ControllerConfig {
-                feedforward,
-                ..config
-            },
-            initial_load_n,
-        )
+        crate::boot::boot(blob, config, |_| initial_load_n)
+            .map(|b| b.controller)
+            .map_err(ConfigError::from)
     }
 
     /// The coefficients.
