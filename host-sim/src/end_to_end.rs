@@ -9,8 +9,8 @@
 //! 2. `fit` and `diagnose` on it through pam-lab's command layer
 //!    ([`pam_lab::commands::fit_record`], [`pam_lab::commands::diagnose_record`])
 //!    and the `model.blob` each writes ([`pam_lab::export::model_file::model_files`]);
-//! 3. each blob through the firmware's boot path
-//!    ([`firmware::controller::model_from_blob`]) into a [`Controller`];
+//! 3. each blob through the firmware's boot path ([`firmware::boot::boot`])
+//!    into a [`Controller`];
 //! 4. every scenario on a fresh rig of the same muscle: PI alone, the
 //!    paper's model as feedforward, the diagnosed model as feedforward.
 //!
@@ -23,7 +23,8 @@ use crate::effect_rigs::EffectRig;
 use crate::pneumatics::PneumaticParams;
 use crate::rig::Rig;
 use crate::scenarios::Scenario;
-use firmware::controller::{model_from_blob, Controller};
+use firmware::boot::BootError;
+use firmware::controller::Controller;
 use pam_lab::commands::{diagnose_record, fit_record};
 use pam_lab::identify::diagnose::DiagnoseConfig;
 use pam_lab::identify::fit::FitConfig;
@@ -144,7 +145,7 @@ fn blob_of(files: &[(&'static str, Vec<u8>)]) -> Option<Vec<u8>> {
 }
 
 /// The firmware's controller booted from `blob` the way the image boots:
-/// [`model_from_blob`] with the configured `Feedforward::Hysteresis`,
+/// [`firmware::boot::boot`] with the configured `Feedforward::Hysteresis`,
 /// which runs whatever effects the blob carries (or refuses it).
 pub fn boot(blob: &[u8], cfg: &BenchConfig, load_n: f64) -> Result<Controller, String> {
     boot_with(blob, Mode::FeedforwardPi, cfg, load_n)
@@ -159,12 +160,11 @@ fn boot_with(
     cfg: &BenchConfig,
     load_n: f64,
 ) -> Result<Controller, String> {
-    let mut config = controller_config(mode, cfg);
-    let (coeffs, feedforward) = model_from_blob(blob, config.feedforward)
-        .map_err(|e| format!("firmware refuses the blob: {e:?}"))?;
-    config.feedforward = feedforward;
-    Controller::new(coeffs, config, load_n as f32)
-        .map_err(|e| format!("firmware refuses the configuration: {e:?}"))
+    match firmware::boot::boot(blob, controller_config(mode, cfg), |_| load_n as f32) {
+        Ok(b) => Ok(b.controller),
+        Err(BootError::Blob(e)) => Err(format!("firmware refuses the blob: {e:?}")),
+        Err(BootError::Controller(e)) => Err(format!("firmware refuses the configuration: {e:?}")),
+    }
 }
 
 /// Characterise, identify and track every scenario on `rig`.

@@ -1,7 +1,7 @@
-//! Fault injection: the firmware's [`Controller`] closed-loop on the rig
-//! ([`crate::harness`]), a fault injected mid-run and (unless it persists)
-//! cleared again, and what the safety monitor did, measured in control
-//! periods.
+//! Fault injection: the firmware's [`firmware::Controller`] closed-loop on
+//! the rig ([`crate::harness`]), a fault injected mid-run and (unless it
+//! persists) cleared again, and what the safety monitor did, measured in
+//! control periods.
 //!
 //! For the sensor faults, "detectable" is decided here from what the
 //! firmware was given (the mocks' taps of every reading, the commands it
@@ -21,9 +21,7 @@
 
 use crate::hal_mocks::SimPwm;
 use crate::harness::{Harness, LoopState};
-use firmware::controller::{
-    Check, ConfigError, Controller, ControllerConfig, Fault, SensorId, ValveCommand,
-};
+use firmware::controller::{Check, ConfigError, ControllerConfig, Fault, SensorId, ValveCommand};
 use firmware::hal::{
     PressureCalibration, SafeState, SensorErrorKind, Valve, ValvePair, ValvePairConfig,
 };
@@ -106,7 +104,7 @@ pub const CASES: [Case; 21] = [
 ];
 
 /// Periods after the clearing of [`Case::IntermittentNan`] at which the
-/// operator resets the latch ([`Controller::reset_latch`]).
+/// operator resets the latch ([`firmware::Controller::reset_latch`]).
 pub const RESET_AFTER_CLEAR: usize = 200;
 
 /// Control period at which every fault is injected (2 s at 1 kHz, the
@@ -647,8 +645,8 @@ pub struct BootOutcome {
 }
 
 /// Boot as the image does (`firmware/src/main.rs`): valves to the safe state
-/// first, then the blob is decoded and checked; a refused blob leaves them
-/// there and no control step runs.
+/// first, then the blob is decoded and checked ([`firmware::boot::boot`]);
+/// a refused blob leaves them there and no control step runs.
 ///
 /// # Panics
 /// If the valve configuration is refused (a bench set-up error).
@@ -660,7 +658,9 @@ pub fn boot(blob: &[u8]) -> BootOutcome {
         .expect("valve config");
     let cfg = ControllerConfig::DEFAULT;
     let _ = valve.set_safe(cfg.safety.safe_state);
-    let result = Controller::from_blob(blob, cfg, LOAD_N as f32).map(|_| ());
+    let result = firmware::boot::boot(blob, cfg, |_| LOAD_N as f32)
+        .map(|_| ())
+        .map_err(ConfigError::from);
     if result.is_err() {
         let _ = valve.set_safe(SafeState::Exhaust);
     }
