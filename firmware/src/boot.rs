@@ -1,33 +1,4 @@
 //! Boot: a coefficient blob decoded once into the controller that runs its model.
-//!
-//! [`boot`] is the one path from blob bytes to a [`Controller`]: the board
-//! controller (`src/main.rs`), the self-test image, [`Controller::from_blob`]
-//! and host-sim's boot checks all go through it. It checks the blob
-//! (magic, version, length, CRC-32, then the parameters and effects are
-//! validated), picks the feedforward that runs the blob's model
-//! ([`model_from_blob`](crate::controller::model_from_blob) gives the same),
-//! asks for the initial load with the decoded coefficients at hand, and
-//! builds the controller. No allocation, no panic.
-//!
-//! ```
-//! use firmware::boot::{boot, BootError};
-//! use firmware::controller::{ControllerConfig, Feedforward};
-//! use pam_core::effects::{Creep, Effects};
-//!
-//! let effects = Effects {
-//!     creep: Some(Creep { gain: 0.3, time_constant_s: 2.0 }),
-//!     ..Effects::NONE
-//! };
-//! let blob = pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects);
-//! // A failed load read starts the tracker at the lightest calibrated load.
-//! let booted = boot(&blob, ControllerConfig::DEFAULT, |c| c.params().min_load_n).unwrap();
-//! assert_eq!(booted.effects, effects);
-//! assert_eq!(booted.controller.config().feedforward, Feedforward::HysteresisEffects(effects));
-//! // One flipped bit: the blob is refused before any controller is built.
-//! let mut bad = blob;
-//! bad[20] ^= 0x10;
-//! assert!(matches!(boot(&bad, ControllerConfig::DEFAULT, |_| 200.0), Err(BootError::Blob(_))));
-//! ```
 
 use crate::controller::{ConfigError, Controller, ControllerConfig, Feedforward};
 use pam_core::{Coeffs, Effects};
@@ -79,12 +50,37 @@ impl core::fmt::Display for BootError {
 
 impl core::error::Error for BootError {}
 
-/// Decode `blob` once and build the controller that runs its model.
+/// Decode `blob` once and build the controller that runs its model: the
+/// one path from blob bytes to a [`Controller`] (the board controller, the
+/// self-test image, [`Controller::from_blob`] and host-sim's boot checks).
+/// The blob must pass magic, version, length and CRC-32, then the
+/// validation of its effects and parameters; no allocation, no panic.
 ///
 /// `config.feedforward` is replaced by the one the blob's model asks for
-/// ([`feedforward_for`]); `initial_load_n` is called once, after the blob
-/// passed, with its coefficients (a board reads its load cell here and
-/// falls back to the calibrated range on a failed read).
+/// (the rules of [`model_from_blob`](crate::controller::model_from_blob));
+/// `initial_load_n` is called once, after the blob passed, with its
+/// coefficients (a board reads its load cell here and falls back to the
+/// calibrated range on a failed read).
+///
+/// ```
+/// use firmware::boot::{boot, BootError};
+/// use firmware::controller::{ControllerConfig, Feedforward};
+/// use pam_core::effects::{Creep, Effects};
+///
+/// let effects = Effects {
+///     creep: Some(Creep { gain: 0.3, time_constant_s: 2.0 }),
+///     ..Effects::NONE
+/// };
+/// let blob = pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects);
+/// // The tracker starts at the lightest calibrated load.
+/// let booted = boot(&blob, ControllerConfig::DEFAULT, |c| c.params().min_load_n).unwrap();
+/// assert_eq!(booted.effects, effects);
+/// assert_eq!(booted.controller.config().feedforward, Feedforward::HysteresisEffects(effects));
+/// // One flipped bit: the blob is refused before any controller is built.
+/// let mut bad = blob;
+/// bad[20] ^= 0x10;
+/// assert!(matches!(boot(&bad, ControllerConfig::DEFAULT, |_| 200.0), Err(BootError::Blob(_))));
+/// ```
 pub fn boot(
     blob: &[u8],
     config: ControllerConfig,
