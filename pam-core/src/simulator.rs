@@ -83,6 +83,18 @@ impl<const N: usize> Simulator<N> {
         &self.tracker
     }
 
+    /// Never build a new load model's inverse tables: after a load switch
+    /// the inverse runs by
+    /// [`FALLBACK_BISECTION_STEPS`](crate::load_model::FALLBACK_BISECTION_STEPS)
+    /// bisection steps on the forward model ([`Tracker::defer_build`], no
+    /// caller advancing it). For an offline simulation whose load switches
+    /// on most samples (an isometric record's measured force), where a
+    /// table per switch costs far more than the bisections it saves. The
+    /// model active at [`Self::new`] keeps its tables.
+    pub fn defer_table_builds(&mut self) {
+        self.tracker.defer_build();
+    }
+
     /// The reversal memory.
     pub fn reversals(&self) -> &[Reversal] {
         self.stack.points()
@@ -381,5 +393,32 @@ mod tests {
         assert!(
             Simulator::<4>::new(coeffs(), bad, TrackerConfig::DEFAULT_PRESSURE, 100.0).is_err()
         );
+    }
+
+    #[test]
+    fn deferred_table_builds_agree_with_the_tables() {
+        // A load that moves on every sample with the pressure (an
+        // isometric test's force): every switch builds tables in one
+        // simulator and none in the other; the two agree to the bisection's
+        // resolution (2^-12 of the stroke).
+        let cfg = TrackerConfig {
+            load_threshold_n: 0.5,
+            load_debounce_samples: 1,
+            ..TrackerConfig::DEFAULT_PRESSURE
+        };
+        let mut with = Simulator::<8>::new(coeffs(), Effects::NONE, cfg, 100.0).unwrap();
+        let mut without = with.clone();
+        without.defer_table_builds();
+        let mut worst = 0.0f32;
+        for k in 0..2000 {
+            let u = k as f32 / 1999.0;
+            let p = 0.5 * (1.0 - libm::cosf(4.0 * core::f32::consts::PI * u));
+            let load = 100.0 + 400.0 * p;
+            let t = k as f32 * 0.001;
+            let (a, b) = (with.step(t, p, load), without.step(t, p, load));
+            worst = worst.max((a - b).abs());
+        }
+        assert!(!without.tracker().inverse_ready());
+        assert!(worst > 0.0 && worst < 2e-4, "{worst}");
     }
 }

@@ -53,10 +53,15 @@ fn check(record: &Record, purpose: Purpose) -> Result<(), DataError> {
 }
 
 /// `diagnose` cuts its hold-out at load changes
-/// ([`crate::record::split::holdout_by_load_block`]); a load column that changes between
-/// most samples (an isometric record's measured force, a noisy load cell)
-/// has no such blocks: refused before the work, with the reason.
+/// ([`crate::record::split::holdout_by_load_block`]), or on an isometric
+/// record at changes of the held length; a record whose load changes
+/// between most samples and whose length is not held (a noisy load cell on
+/// an isotonic rig) has no such blocks: refused before the work, with the
+/// reason.
 pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
+    if fit::detect_test(&record.samples) == fit::TestKind::Isometric {
+        return Ok(());
+    }
     let loads: Vec<f64> = record.samples.iter().map(|s| s.load_n).collect();
     let mask = crate::record::split::holdout_by_load_block(&loads);
     let blocks = 1 + mask.windows(2).filter(|w| w[0] != w[1]).count();
@@ -69,8 +74,8 @@ pub fn check_load_blocks(record: &Record) -> Result<(), DataError> {
             kind: record::DataErrorKind::TooFewSamples(format!(
                 "diagnose holds out whole stretches of one load (within 1 N), but the load \
                  changes so often that the {} samples make {blocks} stretches of {:.1} samples \
-                 on average: it needs an isotonic record that logs its hung load (an isometric \
-                 record's force or a noisy load cell cannot be split so)",
+                 on average: it needs a record that holds its load (isotonic, the hung load \
+                 logged) or its length (isometric); a noisy load cell cannot be split so",
                 record.len(),
                 mean_len
             )),

@@ -189,6 +189,11 @@ enum Command {
         /// as the first).
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(0..=5))]
         max_effects: Option<u8>,
+        /// Also evaluate the base and diagnosed models, in pressure, and the
+        /// reference surface on this record (another test of the same
+        /// muscle, e.g. the held-out test).
+        #[arg(long, value_name = "DATA.csv")]
+        validate: Option<PathBuf>,
         /// Do not draw residual.png and loops.png.
         #[arg(long)]
         no_plot: bool,
@@ -261,6 +266,7 @@ fn main() -> ExitCode {
             out,
             fit,
             max_effects,
+            validate,
             no_plot,
             common,
         } => {
@@ -269,7 +275,7 @@ fn main() -> ExitCode {
                 max_effects: max_effects.map_or(DiagnoseConfig::default().max_effects, usize::from),
                 ..DiagnoseConfig::default()
             };
-            run_diagnose(&data, &out, &cfg, !no_plot, common)
+            run_diagnose(&data, validate.as_deref(), &out, &cfg, !no_plot, common)
         }
     };
     match result {
@@ -574,6 +580,7 @@ fn run_simulate(
 
 fn run_diagnose(
     data: &Path,
+    validate: Option<&Path>,
     out: &Path,
     cfg: &DiagnoseConfig,
     draw: bool,
@@ -582,6 +589,9 @@ fn run_diagnose(
     cfg.fit.validate()?;
     let mut set = OutputSet::new();
     set.protect(data);
+    if let Some(v) = validate {
+        set.protect(v);
+    }
     set.into_dir(out)?;
     set.check_in_dir(
         out,
@@ -597,7 +607,20 @@ fn run_diagnose(
         "diagnosing {} samples: base fit, then each candidate effect",
         record.len()
     ));
-    let report = commands::diagnose_record(&record, cfg, &|msg| rep.stage(msg))?;
+    let validation = match validate {
+        Some(v) => {
+            rep.stage(&format!("reading {}", v.display()));
+            Some(commands::read_record(v, Purpose::Simulate)?)
+        }
+        None => None,
+    };
+    let mut report = commands::diagnose_record(&record, cfg, &|msg| rep.stage(msg))?;
+    if let Some(v) = &validation {
+        rep.stage(&format!("validating on {}", v.source));
+        report.validation = Some(pam_lab::identify::diagnose::validate(
+            &report, &record, v, cfg,
+        ));
+    }
     if draw {
         rep.stage("plotting");
     }

@@ -56,10 +56,11 @@ fn write_test(path: &Path, eps: f64, seed: u64, reset_at: Option<usize>) {
 
 const HELD_CM: [f64; 4] = [8.3, 7.975, 7.65, 7.325];
 
-#[test]
-fn a_logger_isometric_test_is_imported_fitted_and_validated() {
-    let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("logger");
+/// The generated logger files of four held lengths, tests 8 and 9 (train)
+/// and 10 (test), imported through a mapping into `dir/records`: the
+/// records' directory and import's stdout and stderr.
+fn imported(dir: &Path) -> (std::path::PathBuf, bool, String, String) {
+    let data = dir.join("logger");
     std::fs::create_dir(&data).unwrap();
     let mut map = String::from(
         "header = false\n[columns]\nload = { column = 1, unit = \"N\" }\n\
@@ -82,9 +83,9 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
         }
         map.push_str("]\n");
     }
-    let map_path = dir.path().join("map.toml");
+    let map_path = dir.join("map.toml");
     std::fs::write(&map_path, map).unwrap();
-    let out = dir.path().join("records");
+    let out = dir.join("records");
     let (ok, stdout, stderr) = pam_lab(&[
         "import",
         map_path.to_str().unwrap(),
@@ -93,6 +94,13 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
         "-o",
         out.to_str().unwrap(),
     ]);
+    (out, ok, stdout, stderr)
+}
+
+#[test]
+fn a_logger_isometric_test_is_imported_fitted_and_validated() {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, ok, stdout, stderr) = imported(dir.path());
     assert!(ok, "{stdout}{stderr}");
     // The reset is a new segment, said with its file and line.
     assert!(
@@ -185,6 +193,58 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
         stdout.contains("isometric test, the ") && stdout.contains(" slack ones left out"),
         "{stdout}"
     );
+}
+
+/// diagnose on the same records: an isometric record is diagnosed, not
+/// refused (its holds are its segments, its slack samples judged on
+/// nothing), and the diagnosed model predicts the other test's pressure,
+/// every effect in, no worse than the reference surface. In release
+/// builds only (`.ci/run` runs it): a diagnosis of 64 000 samples takes
+/// minutes in a debug build.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn a_logger_isometric_test_is_diagnosed_and_validated() {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, ok, stdout, stderr) = imported(dir.path());
+    assert!(ok, "{stdout}{stderr}");
+    let diag = dir.path().join("diagnose");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "diagnose",
+        out.join("train.csv").to_str().unwrap(),
+        "--validate",
+        out.join("test.csv").to_str().unwrap(),
+        "--no-plot",
+        "-o",
+        diag.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}{stderr}");
+    eprintln!("{stdout}");
+    assert!(
+        stdout.contains("cycles cut at changes of the held length"),
+        "{stdout}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["test_kind"], "isometric");
+    // Every candidate says why it was or was not added.
+    for c in report["rounds"][0]["candidates"].as_array().unwrap() {
+        let verdict = c["verdict"].as_str().unwrap();
+        assert!(
+            verdict.starts_with("earns it") || verdict.starts_with("not earned: "),
+            "{verdict}"
+        );
+    }
+    let v = &report["validation"];
+    let model = v["model"]["pressure_rms_mpa"].as_f64().unwrap();
+    let base = v["base"]["pressure_rms_mpa"].as_f64().unwrap();
+    let reference = v["reference_rms_mpa"].as_f64().unwrap();
+    eprintln!("validation pressure RMS: base {base:.4}, diagnosed {model:.4}, reference {reference:.4} MPa");
+    assert!(model <= reference, "{model} vs {reference}");
+    assert!(model < base, "{model} vs {base}");
+    // The model it writes is the one it validated, and the firmware's
+    // decoder takes its blob.
+    let blob = std::fs::read(diag.join("model.blob")).unwrap();
+    assert!(pam_core::blob::decode_model(&blob).is_ok());
 }
 
 #[test]

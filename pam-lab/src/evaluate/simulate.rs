@@ -67,6 +67,19 @@ pub struct Summary {
 /// firmware's.
 pub use pam_core::effects::memory::MEMORY_DEPTH;
 
+/// When a simulation builds a new load model's inverse tables.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InverseTables {
+    /// At each load switch, as the firmware does (a record whose load
+    /// holds between steps).
+    AtEachSwitch,
+    /// Never after the first model: the inverse by bisection
+    /// ([`Simulator::defer_table_builds`]), for a record whose load is a
+    /// force that switches the model every few samples (an isometric
+    /// test), where a table per switch is most of the work.
+    Never,
+}
+
 /// The record simulator every tool uses: pam-core's [`Simulator`] driven
 /// by each sample's measured pressure and load, the tracker starting on
 /// the contraction branch at the first sample's load; on the tracker's own
@@ -82,12 +95,16 @@ pub fn run_record(
     config: TrackerConfig,
     samples: &[Sample],
     branches: Option<&[Branch]>,
+    tables: InverseTables,
     mut each: impl FnMut(usize, &Simulator<MEMORY_DEPTH>, f32),
 ) -> bool {
     let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
     let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load) else {
         return false;
     };
+    if tables == InverseTables::Never {
+        sim.defer_table_builds();
+    }
     let t0 = samples.first().map_or(0.0, |s| s.t_s);
     for (i, s) in samples.iter().enumerate() {
         let (t, p, l) = ((s.t_s - t0) as f32, s.pressure_mpa as f32, s.load_n as f32);
@@ -100,6 +117,73 @@ pub fn run_record(
     true
 }
 
+/// Halvings of [`pressure_to_reach`]'s search: 2⁻²⁶ of its interval
+/// (under 1e-7 MPa on a 5 MPa one), below the `f32` model's resolution.
+pub const PRESSURE_SEARCH_STEPS: usize = 26;
+
+/// The pressure the model needs to reach each sample's measured
+/// contraction, one sample ahead: the simulator after the record up to the
+/// previous sample (driven, as in [`run_record`], by the measured pressure
+/// and load), stepped once more with a trial pressure, bisected
+/// ([`PRESSURE_SEARCH_STEPS`]) on `0..=pressure_limit_mpa` until it gives
+/// the sample's contraction; then the simulator goes on with the measured
+/// pressure. This is an isometric test's prediction (the length held, the
+/// pressure the model says it takes) with every effect in, which the
+/// static inverse alone leaves out. On a known branch (`branches`) the
+/// trial contraction does not fall as the pressure rises, so the bisection
+/// finds the one answer; a contraction outside what the model reaches gives
+/// the end of the interval. `NaN` everywhere when the effects do not
+/// validate.
+pub fn pressure_to_reach(
+    coeffs: &Coeffs,
+    effects: &Effects,
+    config: TrackerConfig,
+    samples: &[Sample],
+    branches: Option<&[Branch]>,
+    tables: InverseTables,
+    pressure_limit_mpa: f32,
+) -> Vec<f64> {
+    let mut out = vec![f64::NAN; samples.len()];
+    let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
+    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load) else {
+        return out;
+    };
+    if tables == InverseTables::Never {
+        sim.defer_table_builds();
+    }
+    let t0 = samples.first().map_or(0.0, |s| s.t_s);
+    for (i, s) in samples.iter().enumerate() {
+        let (t, l) = ((s.t_s - t0) as f32, s.load_n as f32);
+        let branch = branches.and_then(|b| b.get(i)).copied();
+        let step = |sim: &mut Simulator<MEMORY_DEPTH>, p: f32| match branch {
+            Some(b) => sim.step_on_branch(t, p, l, b),
+            None => sim.step(t, p, l),
+        };
+        let reach = |p: f32| step(&mut sim.clone(), p);
+        let target = s.contraction as f32;
+        let (mut lo, mut hi) = (0.0f32, pressure_limit_mpa.max(0.0));
+        out[i] = if !target.is_finite() {
+            f64::NAN
+        } else if reach(lo) >= target {
+            f64::from(lo)
+        } else if reach(hi) <= target {
+            f64::from(hi)
+        } else {
+            for _ in 0..PRESSURE_SEARCH_STEPS {
+                let mid = 0.5 * (lo + hi);
+                if reach(mid) < target {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            f64::from(0.5 * (lo + hi))
+        };
+        step(&mut sim, s.pressure_mpa as f32);
+    }
+    out
+}
+
 /// Simulate `samples` with `coeffs` and `effects` ([`run_record`] on the
 /// tracker's branches). Effects that do not validate give no samples (a
 /// loaded model file has been validated).
@@ -110,21 +194,29 @@ pub fn simulate(
     samples: &[Sample],
 ) -> Vec<SimSample> {
     let mut out = Vec::with_capacity(samples.len());
-    run_record(coeffs, effects, config, samples, None, |i, sim, x| {
-        let s = &samples[i];
-        let model = sim.tracker().model();
-        let p = model.pressure_mpa(s.contraction as f32, sim.branch());
-        out.push(SimSample {
-            t_s: s.t_s,
-            load_n: s.load_n,
-            pressure_mpa: s.pressure_mpa,
-            measured_contraction: s.contraction,
-            predicted_contraction: f64::from(x),
-            predicted_pressure_mpa: f64::from(p),
-            branch: sim.branch(),
-            active_load_n: f64::from(sim.tracker().load_n()),
-        });
-    });
+    run_record(
+        coeffs,
+        effects,
+        config,
+        samples,
+        None,
+        InverseTables::AtEachSwitch,
+        |i, sim, x| {
+            let s = &samples[i];
+            let model = sim.tracker().model();
+            let p = model.pressure_mpa(s.contraction as f32, sim.branch());
+            out.push(SimSample {
+                t_s: s.t_s,
+                load_n: s.load_n,
+                pressure_mpa: s.pressure_mpa,
+                measured_contraction: s.contraction,
+                predicted_contraction: f64::from(x),
+                predicted_pressure_mpa: f64::from(p),
+                branch: sim.branch(),
+                active_load_n: f64::from(sim.tracker().load_n()),
+            });
+        },
+    );
     out
 }
 
@@ -209,5 +301,72 @@ mod tests {
         write_csv(&mut out, &sim[..2]).unwrap();
         let text = String::from_utf8(out).unwrap();
         assert_eq!(text.lines().count(), 3);
+    }
+
+    #[test]
+    fn pressure_to_reach_recovers_the_pressure_that_drove_the_model() {
+        // A record whose contraction is the model's own, creep and rate in:
+        // one sample ahead, the pressure that reaches it is the pressure
+        // that drove it (the static inverse alone would miss the lag).
+        let rec = generate(
+            &Params::DEFAULT,
+            &Protocol::quick(&[100.0, 300.0]),
+            0.0,
+            0.0,
+            1,
+        );
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+        let effects = Effects {
+            creep: Some(pam_core::effects::Creep {
+                gain: 0.3,
+                time_constant_s: 0.5,
+            }),
+            ..Effects::NONE
+        };
+        let config = TrackerConfig::DEFAULT_PRESSURE;
+        let mut samples = rec.samples.clone();
+        let mut branches = Vec::new();
+        let mut inside = Vec::new();
+        let tables = InverseTables::AtEachSwitch;
+        assert!(run_record(
+            &coeffs,
+            &effects,
+            config,
+            &rec.samples,
+            None,
+            tables,
+            |i, sim, x| {
+                samples[i].contraction = f64::from(x);
+                branches.push(sim.branch());
+                let (lo, hi) = sim.stroke();
+                inside.push(x > lo + 1e-4 && x < hi - 1e-4);
+            }
+        ));
+        let p = pressure_to_reach(
+            &coeffs,
+            &effects,
+            config,
+            &samples,
+            Some(&branches),
+            tables,
+            1.0,
+        );
+        let (mut worst, mut judged) = (0.0f64, 0);
+        for i in (0..samples.len()).filter(|&i| inside[i]) {
+            worst = worst.max((p[i] - samples[i].pressure_mpa).abs());
+            judged += 1;
+        }
+        assert!(judged > samples.len() / 2, "{judged} of {}", samples.len());
+        assert!(worst < 1e-4, "worst {worst} MPa");
+        // The static inverse, the creep left out, is far off after steps.
+        let static_worst = (0..samples.len())
+            .filter(|&i| inside[i])
+            .map(|i| {
+                let m = coeffs.load_model(samples[i].load_n as f32).unwrap();
+                let ps = m.pressure_mpa(samples[i].contraction as f32, branches[i]);
+                (f64::from(ps) - samples[i].pressure_mpa).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(static_worst > 100.0 * worst.max(1e-5), "{static_worst}");
     }
 }

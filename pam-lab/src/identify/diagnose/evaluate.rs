@@ -5,6 +5,7 @@ use serde::Serialize;
 
 use super::regimes::Regimes;
 use crate::evaluate::errors::rms_where;
+use crate::evaluate::simulate::InverseTables;
 use crate::record::Sample;
 
 /// Simulate the model (base `coeffs` plus `effects`) over `samples` from the
@@ -16,6 +17,7 @@ pub fn simulate(
     tracker: TrackerConfig,
     samples: &[Sample],
     branches: &[Branch],
+    tables: InverseTables,
 ) -> Vec<f64> {
     let mut out = vec![f64::NAN; samples.len()];
     crate::evaluate::simulate::run_record(
@@ -24,6 +26,7 @@ pub fn simulate(
         tracker,
         samples,
         Some(branches),
+        tables,
         |i, _, x| out[i] = f64::from(x),
     );
     out
@@ -72,7 +75,8 @@ pub struct RegimeError {
 /// RMS at one load.
 #[derive(Clone, Debug, Serialize)]
 pub struct LoadError {
-    /// Load, N.
+    /// Load, N: the middle of its group (1 N wide on a record that holds
+    /// its load, 25 N on an isometric record, whose force moves).
     pub load_n: f64,
     /// Held-out samples at it.
     pub samples: usize,
@@ -91,8 +95,13 @@ pub(super) struct Setup<'a> {
     pub(super) branches: Vec<Branch>,
     /// Effective-sample divisor: the base residual's correlation length.
     pub(super) corr_len: f64,
-    /// The record's contraction noise floor.
-    pub(super) noise_contraction: f64,
+    /// The noise floor of the residual: the record's contraction noise,
+    /// or on an isometric record (residual in pressure) its pressure noise.
+    pub(super) noise_residual: f64,
+    /// Each sample's factor from contraction residual to pressure residual,
+    /// on an isometric record ([`pressure_weights`]); `None`: the residual
+    /// is the contraction's.
+    pub(super) pressure_weight: Option<Vec<f64>>,
     /// Where the joint refit may move `Pmax`: from this (the record's top
     /// pressure, when `Pmax` was measured from it) up to
     /// [`super::PMAX_CEILING_OF_TOP`] times it, or `None`: held (given by
@@ -104,6 +113,23 @@ pub(super) struct Setup<'a> {
     /// The effects the base model carries: fit's static shape (its stroke
     /// table), when fit found one; every candidate is added on top.
     pub(super) base_effects: Effects,
+    /// Samples no model is judged on: an isometric test's slack samples
+    /// (force at the load cell's floor, [`crate::identify::fit::slack_mask`]),
+    /// where the held length says nothing about the muscle. Their residual
+    /// is `NaN`, and they are in neither part.
+    pub(super) excluded: Vec<bool>,
+    /// Width of the load groups of [`ModelErrors::loads`], N: 1 for a
+    /// record whose load is held at a few values (isotonic), wider for an
+    /// isometric record whose load is a force that changes every sample.
+    pub(super) load_group_n: f64,
+    /// When the simulation builds inverse tables: never on an isometric
+    /// record, whose force switches the load model every few samples.
+    pub(super) tables: InverseTables,
+    /// fit's static shape on the training part, where fit keeps one (its
+    /// stroke table, judged by fit's own held-out rule), with the paper's
+    /// parameters fitted under it: the start of the `constraint_shape`
+    /// candidate's second variant.
+    pub(super) stroke_table: Option<(pam_core::Params, pam_core::effects::ConstraintShape)>,
 }
 
 /// Bins along the stroke of [`stroke_bins`].
@@ -164,11 +190,27 @@ impl Setup<'_> {
     }
 
     pub(super) fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
-        simulate(coeffs, effects, self.tracker, self.samples, &self.branches)
-            .iter()
-            .zip(self.samples)
-            .map(|(x, s)| s.contraction - x)
-            .collect()
+        simulate(
+            coeffs,
+            effects,
+            self.tracker,
+            self.samples,
+            &self.branches,
+            self.tables,
+        )
+        .iter()
+        .zip(self.samples)
+        .zip(&self.excluded)
+        .enumerate()
+        .map(|(i, ((x, s), &excluded))| {
+            if excluded {
+                f64::NAN
+            } else {
+                let w = self.pressure_weight.as_ref().map_or(1.0, |w| w[i]);
+                w * (s.contraction - x)
+            }
+        })
+        .collect()
     }
 
     pub(super) fn errors(
@@ -194,12 +236,14 @@ impl Setup<'_> {
                 }
             })
             .collect();
+        let group = |load_n: f64| (load_n / self.load_group_n).round() * self.load_group_n;
         let mut loads: Vec<f64> = self
             .samples
             .iter()
             .zip(&self.heldout)
-            .filter(|(_, h)| **h)
-            .map(|(s, _)| s.load_n.round())
+            .zip(&self.excluded)
+            .filter(|((_, h), x)| **h && !**x)
+            .map(|((s, _), _)| group(s.load_n))
             .collect();
         loads.sort_by(f64::total_cmp);
         loads.dedup();
@@ -207,7 +251,7 @@ impl Setup<'_> {
             .into_iter()
             .map(|l| {
                 let (rms, samples) = rms_where(&res, |i| {
-                    self.heldout[i] && self.samples[i].load_n.round() == l
+                    self.heldout[i] && group(self.samples[i].load_n) == l
                 });
                 LoadError {
                     load_n: l,
@@ -229,4 +273,59 @@ impl Setup<'_> {
             res,
         )
     }
+}
+
+/// Bounds of [`pressure_weights`] around their median: a weight is kept
+/// within this factor of it either way.
+pub const PRESSURE_WEIGHT_SPREAD: f64 = 20.0;
+
+/// An isometric record's residual in pressure, to first order: each
+/// sample's contraction residual times the slope `|dp/dx|` of `coeffs`'
+/// static model at the measured contraction, load and branch (central
+/// difference over 1e-4 of rest length, the chip's `f32` evaluation,
+/// [`ModelCache`](crate::evaluate::errors::ModelCache)). The held length is
+/// the input of an isometric test and the pressure its answer: a model
+/// error in contraction where the curve is steep is a large pressure
+/// error, where it is flat a small one, and the diagnosis weighs them as
+/// the user's pressure does. Fixed per record (the base model's slopes),
+/// so every candidate is simulated once per evaluation, as on an isotonic
+/// record; the exact pressure (`pressure_to_reach`) judges the result on
+/// `--validate`. Bounded to [`PRESSURE_WEIGHT_SPREAD`] times the median
+/// either way: at a stroke end the slope is 0 or without bound.
+pub fn pressure_weights(
+    coeffs: &Coeffs,
+    samples: &[Sample],
+    branches: &[Branch],
+    excluded: &[bool],
+) -> Vec<f64> {
+    let mut cache = crate::evaluate::errors::ModelCache::new(coeffs, None);
+    let h = 1e-4f32;
+    let raw: Vec<f64> = samples
+        .iter()
+        .zip(branches)
+        .map(|(s, &b)| {
+            let (x, l) = (s.contraction as f32, s.load_n as f32);
+            let up = cache.pressure_mpa(x + h, l, b);
+            let down = cache.pressure_mpa(x - h, l, b);
+            f64::from((up - down).abs()) / (2.0 * f64::from(h))
+        })
+        .collect();
+    let mut used: Vec<f64> = raw
+        .iter()
+        .zip(excluded)
+        .filter(|(w, x)| !**x && w.is_finite() && **w > 0.0)
+        .map(|(w, _)| *w)
+        .collect();
+    if used.is_empty() {
+        return vec![1.0; samples.len()];
+    }
+    let mid = used.len() / 2;
+    let (_, median, _) = used.select_nth_unstable_by(mid, f64::total_cmp);
+    let (lo, hi) = (
+        *median / PRESSURE_WEIGHT_SPREAD,
+        *median * PRESSURE_WEIGHT_SPREAD,
+    );
+    raw.iter()
+        .map(|w| if w.is_finite() { w.clamp(lo, hi) } else { hi })
+        .collect()
 }

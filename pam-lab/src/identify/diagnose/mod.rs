@@ -65,6 +65,7 @@ mod paths;
 mod refit;
 mod regimes;
 mod report;
+mod validate;
 
 use pam_core::{Coeffs, Effects, TrackerConfig};
 
@@ -78,6 +79,7 @@ pub use paths::{PathSummary, PATHS_MAX};
 pub use refit::{BASE_REFIT_FIELDS, PMAX_CEILING_OF_TOP};
 pub use regimes::{hindsight_branches, pressure_regimes, regimes, Regimes};
 pub use report::{summary, CandidateSummary, DiagnoseReport, HoldoutCover, Round};
+pub use validate::{validate, DiagnoseValidation, ValidationErrors};
 
 use evaluate::Setup;
 use refit::refit_base;
@@ -170,13 +172,72 @@ pub enum DiagnoseError {
 /// first sample of a step, as the muscle does. Otherwise every load step
 /// would leave a few samples on the old load's curve, a residual spike that
 /// no effect explains.
-fn tracker_config(noise_mpa: f64, load_noise_n: f64) -> TrackerConfig {
+///
+/// An isometric record's load is the measured force, which moves with the
+/// pressure on every sample: the load model follows it within twice its
+/// noise (at least 0.5 N) from the first sample, or the model would run up
+/// to 20 N behind the muscle (on the Festo muscle, 30 kPa of pressure).
+fn tracker_config(noise_mpa: f64, load_noise_n: f64, isometric: bool) -> TrackerConfig {
     let mut cfg = TrackerConfig::DEFAULT_PRESSURE;
     cfg.direction_deadband = (3.0 * noise_mpa).max(0.002) as f32;
-    if load_noise_n < 1.0 {
+    if load_noise_n < 1.0 || isometric {
         cfg.load_debounce_samples = 1;
     }
+    if isometric {
+        cfg.load_threshold_n = (2.0 * load_noise_n).max(0.5) as f32;
+    }
     cfg
+}
+
+/// Inverse tables at each load switch (as the firmware), except on an
+/// isometric record: its force switches the load model every few samples,
+/// and a table per switch was 80 % of a diagnosis' time there.
+fn inverse_tables(isometric: bool) -> crate::evaluate::simulate::InverseTables {
+    if isometric {
+        crate::evaluate::simulate::InverseTables::Never
+    } else {
+        crate::evaluate::simulate::InverseTables::AtEachSwitch
+    }
+}
+
+/// The branch of every sample from the sweep split `fit` labels its
+/// samples with ([`crate::record::split::split_branches`]; an unlabelled
+/// sample keeps the branch before it, the first ones the contraction
+/// branch): an isometric record's branches. A logger's valve fills in
+/// pulses (the Festo rig every 0.5 s), and the pressure rings by ±10 kPa
+/// after each; every ring is a reversal to [`hindsight_branches`]' deadband
+/// and a jump of the paper's model between its branches in the middle of
+/// a fill. The sweep split follows the fill and the vent.
+pub fn sweep_branches(labels: &[Option<pam_core::Branch>]) -> Vec<pam_core::Branch> {
+    let mut last = pam_core::Branch::Contraction;
+    labels
+        .iter()
+        .map(|b| {
+            if let Some(b) = b {
+                last = *b;
+            }
+            last
+        })
+        .collect()
+}
+
+/// Width of the held-out load groups of an isometric record, N
+/// ([`ModelErrors::loads`]).
+pub const ISOMETRIC_LOAD_GROUP_N: f64 = 25.0;
+
+/// The channel [`crate::record::split::holdout_by_segment`] cuts segments at
+/// (a change of more than 1 unit): the load in N for a record that holds its
+/// load; for an isometric record, the held contraction in units of five
+/// times its noise (at least 1e-4 of rest length), so that every hold is a
+/// segment of its own and the force, which moves on every sample, is not.
+fn hold_channel(samples: &[Sample], isometric: bool) -> Vec<f64> {
+    if isometric {
+        let noise = crate::record::noise_std(samples.iter().map(|s| s.contraction));
+        let unit = (5.0 * noise).max(1e-4);
+        samples.iter().map(|s| s.contraction / unit).collect()
+    } else {
+        samples.iter().map(|s| s.load_n).collect()
+    }
 }
 
 /// Run the diagnosis on `record`.
@@ -199,9 +260,16 @@ pub fn diagnose_with_progress(
             samples.len()
         )));
     }
+    // An isometric test holds the contraction on purpose: its holds are
+    // the segments, its force is the load, its slack samples are judged on
+    // nothing (as in fit).
+    let test = crate::identify::fit::detect_test(samples);
+    let isometric = test == crate::identify::fit::TestKind::Isometric;
+    let excluded = crate::identify::fit::slack_mask(samples, test);
     let denoised = denoise_pressure(samples, PRESSURE_MEDIAN_HALF_WIDTH);
     let samples = &denoised;
     let loads: Vec<f64> = samples.iter().map(|s| s.load_n).collect();
+    let holds = hold_channel(samples, isometric);
     let split = crate::record::split::split_branches(
         samples,
         &crate::record::split::SplitConfig::default(),
@@ -211,7 +279,7 @@ pub fn diagnose_with_progress(
     // segments too, or its candidate could not show on held-out data.
     let paced = pressure_regimes(samples);
     let (heldout, moved) = crate::record::split::holdout_by_segment(
-        &loads,
+        &holds,
         &split.cycle,
         HOLDOUT_EVERY,
         &[&paced.fast_ramp, &paced.hold_after_step],
@@ -227,7 +295,7 @@ pub fn diagnose_with_progress(
     let extrapolated = crate::record::split::extrapolated(&loads, &heldout);
     // The training part keeps the file's line numbers, so that a refusal
     // of the base fit points at the record's own lines.
-    let keep = |i: &usize| !heldout[*i];
+    let keep = |i: &usize| !heldout[*i] && !excluded[*i];
     let train_record = Record {
         source: format!("{} (training part)", record.source),
         samples: (0..samples.len())
@@ -252,6 +320,20 @@ pub fn diagnose_with_progress(
         train_record.samples.len()
     ));
     let fit = crate::identify::fit::fit(&train_record, &fit_cfg)?;
+    // fit's static shape on the same training part, judged as fit judges
+    // it (its own held-out cycles): the table variant of the
+    // `constraint_shape` candidate, which competes with the others.
+    let stroke_table = if cfg.fit.static_shape {
+        progress("fitting the static shape fit would keep on the training part");
+        let mut table_cfg = fit_cfg.clone();
+        table_cfg.static_shape = true;
+        table_cfg.holdout = FitConfig::default().holdout;
+        crate::identify::fit::fit(&train_record, &table_cfg)
+            .ok()
+            .and_then(|f| f.constraint_shape.map(|shape| (f.params, shape)))
+    } else {
+        None
+    };
 
     // The held-out blocks may go beyond the training loads (the examples'
     // random loads reach 350 N, the training blocks 300 N): widen the
@@ -275,11 +357,33 @@ pub fn diagnose_with_progress(
     let tracker = tracker_config(
         crate::record::noise_std(record.samples.iter().map(|s| s.pressure_mpa)),
         crate::record::noise_std(record.samples.iter().map(|s| s.load_n)),
+        isometric,
     );
-    let train_idx: Vec<usize> = (0..samples.len()).filter(|&i| !heldout[i]).collect();
+    let train_idx: Vec<usize> = (0..samples.len())
+        .filter(|&i| !heldout[i] && !excluded[i])
+        .collect();
+    // Slack samples are in neither part.
+    let heldout: Vec<bool> = heldout
+        .iter()
+        .zip(&excluded)
+        .map(|(&h, &x)| h && !x)
+        .collect();
     let regimes = regimes(samples, &coeffs, tracker);
     let noise = crate::evaluate::errors::noise_floor(&record.samples);
-    let branches = hindsight_branches(samples, &coeffs, tracker, noise.contraction);
+    let branches = if isometric {
+        sweep_branches(&split.branch)
+    } else {
+        hindsight_branches(samples, &coeffs, tracker, noise.contraction)
+    };
+    // An isometric record's residual is in pressure (its answer), an
+    // isotonic one's in contraction.
+    let noise_residual = if isometric {
+        noise.pressure_mpa
+    } else {
+        noise.contraction
+    };
+    let pressure_weight =
+        isometric.then(|| evaluate::pressure_weights(&coeffs, samples, &branches, &excluded));
     let mut setup = Setup {
         samples,
         coeffs,
@@ -289,13 +393,22 @@ pub fn diagnose_with_progress(
         regimes,
         branches,
         corr_len: 1.0,
-        noise_contraction: noise.contraction,
+        noise_residual,
+        pressure_weight,
         pmax_floor_mpa: match fit.pmax_source {
             crate::identify::fit::PmaxSource::Measured => Some(fit.params.points.max_pressure_mpa),
             crate::identify::fit::PmaxSource::Given => None,
         },
         stroke_bin: evaluate::stroke_bins(samples),
         base_effects,
+        excluded,
+        stroke_table,
+        tables: inverse_tables(isometric),
+        load_group_n: if isometric {
+            ISOMETRIC_LOAD_GROUP_N
+        } else {
+            1.0
+        },
     };
     let base_res = setup.residuals(setup.base_effects);
     let train_res: Vec<f64> = setup.train_idx.iter().map(|&i| base_res[i]).collect();
@@ -303,7 +416,7 @@ pub fn diagnose_with_progress(
     // over its width, not beyond.
     setup.corr_len = correlation_length(
         &train_res,
-        noise.contraction,
+        noise_residual,
         2 * PRESSURE_MEDIAN_HALF_WIDTH + 1,
     );
     let (paper_errors, _) = setup.errors(&setup.coeffs, setup.base_effects, 0);
@@ -359,8 +472,16 @@ pub fn diagnose_with_progress(
         tracker,
         samples,
         &setup.branches,
+        setup.tables,
     );
-    let predicted_after = simulate(&model_coeffs, current, tracker, samples, &setup.branches);
+    let predicted_after = simulate(
+        &model_coeffs,
+        current,
+        tracker,
+        samples,
+        &setup.branches,
+        setup.tables,
+    );
     let candidates = rounds
         .first()
         .map(|r| {
@@ -375,9 +496,9 @@ pub fn diagnose_with_progress(
         .unwrap_or_default();
     let heldout_samples = setup.heldout.iter().filter(|h| **h).count();
     let above_noise_before =
-        crate::evaluate::errors::above_noise(base_errors.rms_heldout, noise.contraction);
+        crate::evaluate::errors::above_noise(base_errors.rms_heldout, noise_residual);
     let above_noise_after =
-        crate::evaluate::errors::above_noise(current_errors.rms_heldout, noise.contraction);
+        crate::evaluate::errors::above_noise(current_errors.rms_heldout, noise_residual);
     let above_noise_removed = if above_noise_before > 0.0 {
         1.0 - above_noise_after / above_noise_before
     } else {
@@ -385,6 +506,13 @@ pub fn diagnose_with_progress(
     };
     Ok(DiagnoseReport {
         source: record.source.clone(),
+        test_kind: test,
+        residual: if isometric {
+            "pressure (MPa)"
+        } else {
+            "contraction"
+        },
+        residual_noise: noise_residual,
         named: added.first().copied().unwrap_or("none"),
         effects_added: added,
         rms_before: base_errors.rms_heldout,
@@ -403,10 +531,12 @@ pub fn diagnose_with_progress(
         base_params: refit_base_params,
         final_params: model_params,
         effects: current,
+        base_effects: setup.base_effects,
+        validation: None,
         pmax_record_top_mpa: pmax_record_top_mpa.map(f64::from),
         pmax_at_ceiling,
         heldout_samples,
-        train_samples: samples.len() - heldout_samples,
+        train_samples: setup.train_idx.len(),
         correlation_length: setup.corr_len,
         min_improvement: cfg.min_improvement,
         min_bic_drop: cfg.min_bic_drop,

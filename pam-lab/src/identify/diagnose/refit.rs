@@ -292,8 +292,15 @@ mod tests {
             })
             .chain([Branch::Expansion])
             .collect();
-        let tracker = super::super::tracker_config(0.001, 0.0);
-        let x = simulate(&truth_coeffs, Effects::NONE, tracker, &samples, &branches);
+        let tracker = super::super::tracker_config(0.001, 0.0, false);
+        let x = simulate(
+            &truth_coeffs,
+            Effects::NONE,
+            tracker,
+            &samples,
+            &branches,
+            crate::evaluate::simulate::InverseTables::AtEachSwitch,
+        );
         for (s, x) in samples.iter_mut().zip(x) {
             s.contraction = x;
         }
@@ -317,10 +324,15 @@ mod tests {
             regimes: super::super::regimes(samples, start, tracker),
             branches,
             corr_len: 1.0,
-            noise_contraction: 0.0,
+            noise_residual: 0.0,
+            pressure_weight: None,
             pmax_floor_mpa,
             stroke_bin: super::super::evaluate::stroke_bins(samples),
             base_effects: Effects::NONE,
+            excluded: vec![false; n],
+            load_group_n: 1.0,
+            stroke_table: None,
+            tables: crate::evaluate::simulate::InverseTables::AtEachSwitch,
         }
     }
 

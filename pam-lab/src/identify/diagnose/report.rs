@@ -33,6 +33,17 @@ pub struct HoldoutCover {
 pub struct DiagnoseReport {
     /// The record diagnosed.
     pub source: String,
+    /// The kind of test it is: an isometric record's holds are its
+    /// segments, its slack samples judged on nothing.
+    pub test_kind: crate::identify::fit::TestKind,
+    /// What every RMS of the diagnosis measures: `contraction` (fraction of
+    /// rest length), or on an isometric record `pressure (MPa)` (the
+    /// contraction residual through the base model's slope, see
+    /// `evaluate::pressure_weights`).
+    pub residual: &'static str,
+    /// The noise floor of that residual: `noise.contraction`, or on an
+    /// isometric record `noise.pressure_mpa`.
+    pub residual_noise: f64,
     /// Effects added, in order (empty: `none`).
     pub effects_added: Vec<&'static str>,
     /// What was named: the first effect added, or `none`.
@@ -76,6 +87,14 @@ pub struct DiagnoseReport {
     pub final_params: Params,
     /// The final model's effects.
     pub effects: Effects,
+    /// The effects the base model carries (none: the static shape is a
+    /// candidate like the others).
+    #[serde(skip)]
+    pub base_effects: Effects,
+    /// The base and final models on another record of the muscle
+    /// (`--validate`), in pressure, beside the reference surface.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<super::validate::DiagnoseValidation>,
     /// The record's top pressure, MPa (the training part's, through a
     /// 9-sample average, as `fit` measures `Pmax`), where `Pmax` started
     /// when it was measured (the joint refit may raise it: a loop still
@@ -144,8 +163,15 @@ pub fn summary(r: &DiagnoseReport) -> String {
     let mut s = String::new();
     let pct = |x: f64| 100.0 * x;
     s.push_str(&format!(
-        "diagnose {}: {} training / {} held-out samples (one segment in 3 held out: cycles cut at load changes, drawn)\n",
-        r.source, r.train_samples, r.heldout_samples
+        "diagnose {}: {} training / {} held-out samples (one segment in 3 held out: cycles cut at {}, drawn)\n",
+        r.source,
+        r.train_samples,
+        r.heldout_samples,
+        match r.test_kind {
+            crate::identify::fit::TestKind::Isometric =>
+                "changes of the held length; slack samples in neither part",
+            _ => "load changes",
+        }
     ));
     for c in r.holdout_cover.iter().filter(|c| c.segments_moved > 0) {
         s.push_str(&format!(
@@ -154,8 +180,8 @@ pub fn summary(r: &DiagnoseReport) -> String {
         ));
     }
     s.push_str(&format!(
-        "base model (paper): held-out RMS contraction error {:.5}\n",
-        r.rms_before
+        "base model (paper): held-out RMS {} error {:.5}\n",
+        r.residual, r.rms_before
     ));
     if r.extrapolated_samples > 0 {
         s.push_str(&format!(
@@ -200,6 +226,12 @@ pub fn summary(r: &DiagnoseReport) -> String {
                 },
                 if c.earned { "  earns it" } else { "" }
             ));
+            if !c.earned {
+                s.push_str(&format!("      {}\n", c.verdict));
+            }
+            if let Some(v) = &c.variants {
+                s.push_str(&format!("      {v}\n"));
+            }
         }
         match round.added {
             Some(n) => s.push_str(&format!("  -> added {n}\n")),
@@ -232,7 +264,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
     ));
     s.push_str(&format!(
         "noise floor {:.5} (from {} slow samples); error above it {:.5} -> {:.5} ({:.1} % removed)\n",
-        r.noise.contraction,
+        r.residual_noise,
         r.noise.samples,
         r.above_noise_before,
         r.above_noise_after,
@@ -250,6 +282,24 @@ pub fn summary(r: &DiagnoseReport) -> String {
             s.push_str(&format!(
                 "Pmax refitted {top:.4} -> {pmax:.4} MPa: the loop is still open at the record's top pressure and closes above it (the model extrapolates there; the firmware commands no more than its `max_command_mpa`)\n"
             ));
+        }
+    }
+    if let Some(v) = &r.validation {
+        let kpa = |mpa: f64| 1000.0 * mpa;
+        s.push_str(&format!(
+            "validation on {} ({} samples), pressure RMS: base model {:.1} kPa, diagnosed model {:.1} kPa",
+            v.source,
+            v.samples,
+            kpa(v.base.pressure_rms_mpa),
+            kpa(v.model.pressure_rms_mpa)
+        ));
+        match v.reference_rms_mpa {
+            Some(r) => s.push_str(&format!(
+                ", reference surface {:.1} kPa ({:.2}x)\n",
+                kpa(r),
+                v.model.pressure_rms_mpa / r
+            )),
+            None => s.push('\n'),
         }
     }
     for w in &r.warnings {

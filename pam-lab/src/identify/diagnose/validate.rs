@@ -1,0 +1,114 @@
+//! The diagnosed model on another record of the same muscle, in the
+//! pressure a user commands: the pressure each sample's contraction takes
+//! ([`crate::evaluate::simulate::pressure_to_reach`], every effect in),
+//! beside the reference surface fitted to the diagnosed record.
+
+use pam_core::{Coeffs, Effects, Params};
+use serde::Serialize;
+
+use super::{denoise_pressure, hindsight_branches, tracker_config, DiagnoseConfig, DiagnoseReport};
+use crate::evaluate::errors::rms_where;
+use crate::identify::fit::{detect_test, slack_mask, TestKind};
+use crate::identify::reference::ReferenceSurface;
+use crate::record::split::split_branches;
+use crate::record::Record;
+
+/// One model's errors on the validation record.
+#[derive(Clone, Debug, Serialize)]
+pub struct ValidationErrors {
+    /// RMS of the pressure the model needs to reach each sample's
+    /// contraction, minus the measured pressure, MPa.
+    pub pressure_rms_mpa: f64,
+    /// RMS of the simulated contraction (driven by the measured pressure
+    /// and load) minus the measured one.
+    pub contraction_rms: f64,
+}
+
+/// The diagnosis on a record it was not fitted to.
+#[derive(Clone, Debug, Serialize)]
+pub struct DiagnoseValidation {
+    /// The record.
+    pub source: String,
+    /// Samples judged: those `fit --validate` judges (on a branch, not
+    /// slack).
+    pub samples: usize,
+    /// The base model (the paper's, refitted).
+    pub base: ValidationErrors,
+    /// The diagnosed model, its effects in.
+    pub model: ValidationErrors,
+    /// The reference surface ([`ReferenceSurface`]) fitted to every
+    /// labelled, loaded sample of the diagnosed record: RMS pressure error
+    /// on the same samples, MPa.
+    pub reference_rms_mpa: Option<f64>,
+}
+
+/// Evaluate `report`'s base and final models on `validation`, and the
+/// reference surface fitted to `record` (the record diagnosed).
+pub fn validate(
+    report: &DiagnoseReport,
+    record: &Record,
+    validation: &Record,
+    cfg: &DiagnoseConfig,
+) -> DiagnoseValidation {
+    let raw = &validation.samples;
+    let test = detect_test(raw);
+    let slack = slack_mask(raw, test);
+    let split = split_branches(raw, &cfg.fit.split);
+    let include = |i: usize| split.branch[i].is_some() && !slack[i];
+    let samples = denoise_pressure(raw, super::PRESSURE_MEDIAN_HALF_WIDTH);
+    let tracker = tracker_config(
+        crate::record::noise_std(raw.iter().map(|s| s.pressure_mpa)),
+        crate::record::noise_std(raw.iter().map(|s| s.load_n)),
+        test == TestKind::Isometric,
+    );
+    let noise = crate::evaluate::errors::noise_floor(raw);
+    let tables = super::inverse_tables(test == TestKind::Isometric);
+    let errors = |params: &Params, effects: &Effects| {
+        let nan = ValidationErrors {
+            pressure_rms_mpa: f64::NAN,
+            contraction_rms: f64::NAN,
+        };
+        let Ok(coeffs) = Coeffs::new(*params) else {
+            return nan;
+        };
+        // Up to the model's `Pmax`, where its stroke ends: a contraction
+        // beyond what the model reaches is predicted at `Pmax`, as the
+        // static inverse clamps it to the stroke.
+        let limit = params.points.max_pressure_mpa;
+        let branches = if test == TestKind::Isometric {
+            super::sweep_branches(&split.branch)
+        } else {
+            hindsight_branches(&samples, &coeffs, tracker, noise.contraction)
+        };
+        let p = crate::evaluate::simulate::pressure_to_reach(
+            &coeffs,
+            effects,
+            tracker,
+            &samples,
+            Some(&branches),
+            tables,
+            limit,
+        );
+        let p_res: Vec<f64> = p.iter().zip(raw).map(|(p, s)| p - s.pressure_mpa).collect();
+        let x = super::simulate(&coeffs, *effects, tracker, &samples, &branches, tables);
+        let x_res: Vec<f64> = x.iter().zip(raw).map(|(x, s)| x - s.contraction).collect();
+        ValidationErrors {
+            pressure_rms_mpa: rms_where(&p_res, include).0,
+            contraction_rms: rms_where(&x_res, include).0,
+        }
+    };
+    let own = &record.samples;
+    let own_test = detect_test(own);
+    let own_slack = slack_mask(own, own_test);
+    let own_split = split_branches(own, &cfg.fit.split);
+    let reference = ReferenceSurface::fit(own, |i| own_split.branch[i].is_some() && !own_slack[i]);
+    DiagnoseValidation {
+        source: validation.source.clone(),
+        samples: (0..raw.len()).filter(|&i| include(i)).count(),
+        base: errors(&report.base_params, &report.base_effects),
+        model: errors(&report.final_params, &report.effects),
+        reference_rms_mpa: reference
+            .and_then(|r| r.rms_mpa(raw, include))
+            .map(|(rms, _)| rms),
+    }
+}
