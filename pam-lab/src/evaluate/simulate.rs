@@ -122,18 +122,19 @@ pub fn run_record(
 pub const PRESSURE_SEARCH_STEPS: usize = 26;
 
 /// The pressure the model needs to reach each sample's measured
-/// contraction, one sample ahead: the simulator after the record up to the
-/// previous sample (driven, as in [`run_record`], by the measured pressure
-/// and load), stepped once more with a trial pressure, bisected
-/// ([`PRESSURE_SEARCH_STEPS`]) on `0..=pressure_limit_mpa` until it gives
-/// the sample's contraction; then the simulator goes on with the measured
-/// pressure. This is an isometric test's prediction (the length held, the
-/// pressure the model says it takes) with every effect in, which the
-/// static inverse alone leaves out. On a known branch (`branches`) the
-/// trial contraction does not fall as the pressure rises, so the bisection
-/// finds the one answer; a contraction outside what the model reaches gives
-/// the end of the interval. `NaN` everywhere when the effects do not
-/// validate.
+/// contraction: at every sample the simulator, stepped with a trial
+/// pressure, is bisected ([`PRESSURE_SEARCH_STEPS`]) on
+/// `0..=pressure_limit_mpa` until it gives the sample's contraction, and
+/// goes on with the pressure found: the model's own pressure history, as a
+/// feedforward's (with the measured one, a lag effect such as creep would
+/// need an unbounded pressure to close in one sample what the measured
+/// history left open). The load is the measured one. This is an isometric
+/// test's prediction (the length held, the pressure the model says it
+/// takes) with every effect in, which the static inverse alone leaves out.
+/// On a known branch (`branches`) the trial contraction does not fall as
+/// the pressure rises, so the bisection finds the one answer; a contraction
+/// outside what the model reaches gives the end of the interval. `NaN`
+/// everywhere when the effects do not validate.
 pub fn pressure_to_reach(
     coeffs: &Coeffs,
     effects: &Effects,
@@ -162,12 +163,12 @@ pub fn pressure_to_reach(
         let reach = |p: f32| step(&mut sim.clone(), p);
         let target = s.contraction as f32;
         let (mut lo, mut hi) = (0.0f32, pressure_limit_mpa.max(0.0));
-        out[i] = if !target.is_finite() {
-            f64::NAN
+        let found = if !target.is_finite() {
+            None
         } else if reach(lo) >= target {
-            f64::from(lo)
+            Some(lo)
         } else if reach(hi) <= target {
-            f64::from(hi)
+            Some(hi)
         } else {
             for _ in 0..PRESSURE_SEARCH_STEPS {
                 let mid = 0.5 * (lo + hi);
@@ -177,9 +178,10 @@ pub fn pressure_to_reach(
                     hi = mid;
                 }
             }
-            f64::from(0.5 * (lo + hi))
+            Some(0.5 * (lo + hi))
         };
-        step(&mut sim, s.pressure_mpa as f32);
+        out[i] = found.map_or(f64::NAN, f64::from);
+        step(&mut sim, found.unwrap_or(s.pressure_mpa as f32));
     }
     out
 }

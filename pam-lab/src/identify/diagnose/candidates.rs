@@ -404,7 +404,12 @@ fn fit_effect_on(
 
 /// The evidence rule's three tests with their numbers: the ones a
 /// candidate failed, or that it met them all.
-fn verdict(improvement: f64, bic_drop: f64, signature: &Signature, cfg: &DiagnoseConfig) -> String {
+fn verdict(
+    improvement: f64,
+    bic_drop: Option<f64>,
+    signature: &Signature,
+    cfg: &DiagnoseConfig,
+) -> String {
     let pct = |x: f64| 100.0 * x;
     let cut = 1.0 - signature.rms_after / signature.rms_before;
     let mut failed = Vec::new();
@@ -415,9 +420,15 @@ fn verdict(improvement: f64, bic_drop: f64, signature: &Signature, cfg: &Diagnos
             pct(cfg.min_improvement)
         ));
     }
-    if bic_drop.is_nan() || bic_drop < cfg.min_bic_drop {
-        failed.push(format!("BIC drop {bic_drop:.1} < {:.0}", cfg.min_bic_drop));
-    }
+    let bic = match bic_drop {
+        Some(d) => {
+            if d.is_nan() || d < cfg.min_bic_drop {
+                failed.push(format!("BIC drop {d:.1} < {:.0}", cfg.min_bic_drop));
+            }
+            format!("BIC drop {d:.1}")
+        }
+        None => "the stroke table's BIC judged by fit's static stage".to_string(),
+    };
     if !cut.is_finite() {
         failed.push(format!(
             "no held-out samples in its regime ({})",
@@ -433,7 +444,7 @@ fn verdict(improvement: f64, bic_drop: f64, signature: &Signature, cfg: &Diagnos
     }
     if failed.is_empty() {
         format!(
-            "earns it: held-out RMS cut {:.1} %, BIC drop {bic_drop:.1}, cut in its regime ({}) {:.1} %",
+            "earns it: held-out RMS cut {:.1} %, {bic}, cut in its regime ({}) {:.1} %",
             pct(improvement),
             signature.regime,
             pct(cut)
@@ -503,36 +514,36 @@ pub(super) fn evaluate_candidate(
         )
     };
     let plain = fit_variant(model, current, current_params + kind.parameter_count());
-    // The static shape's second variant: fit's stroke table (fitted on the
-    // training part, kept there by fit's own rules) under the same
-    // correction, from fit's parameters under that table.
+    // The static shape's second variant: fit's static model on the
+    // training part as fit made it, its stroke table fitted with the
+    // paper's parameters under it, against the pressure. Refitting the base
+    // and the correction's terms on the simulated record moved them off it
+    // (Festo 25 cm, test 10: 13 kPa as fit made it, 18 kPa refitted).
     let with_table = match (&setup.stroke_table, kind, current.shape) {
         (Some((params, shape)), EffectKind::ConstraintShape, None) => {
             Coeffs::new(*params).ok().map(|coeffs| {
-                fit_variant(
-                    (*params, coeffs),
-                    Effects {
-                        shape: Some(*shape),
-                        ..current
-                    },
-                    current_params + kind.parameter_count() + STROKE_TABLE_PARAMETERS,
-                )
+                let effects = Effects {
+                    shape: Some(*shape),
+                    ..current
+                };
+                let n_params = current_params + STROKE_TABLE_PARAMETERS;
+                let (errors, res) = setup.errors(&coeffs, effects, n_params);
+                (*params, coeffs, effects, errors, res, STROKE_TABLE_PARAMETERS)
             })
         }
         _ => None,
     };
-    let judge = |v: Variant| judge(setup, kind, v, current_errors, current_params, cfg);
+    let judge = |v: Variant, table: bool| {
+        judge(setup, kind, v, current_errors, current_params, cfg, table)
+    };
     match with_table {
-        None => judge(plain),
+        None => judge(plain, false),
         Some(table) => {
             // The static shape's two variants: the one that earns its place
-            // with the lower held-out RMS (the evidence rule decides, not a
-            // BIC over correlated residuals, which no 74-parameter variant
-            // passes against an 8-parameter one: on the Festo muscle the
-            // residual is correlated over whole ramps).
-            let (a, b) = (judge(plain), judge(table));
+            // with the lower held-out RMS.
+            let (a, b) = (judge(plain, false), judge(table, true));
             let note = format!(
-                "with fit's stroke table: {}; without: {}",
+                "fit's static model with its stroke table: {}; the correction alone: {}",
                 describe(&b),
                 describe(&a)
             );
@@ -560,7 +571,15 @@ fn describe(c: &CandidateResult) -> String {
     )
 }
 
-/// The evidence rule on one fitted variant of `kind`.
+/// The evidence rule on one fitted variant of `kind`. `with_table`: the
+/// variant carries fit's stroke table, whose knots fit's static stage has
+/// already made earn their place on the training part (its BIC over the
+/// misfit per load and stroke cell, and its own held-out cycles): here it
+/// must cut the held-out RMS overall and in its regime. diagnose's BIC
+/// counts independent samples by the residual's correlation length, which
+/// on an isometric record runs over whole ramps (39 000 training samples
+/// of the Festo muscle count as 78), and no 66 knots pass that against 8
+/// terms however large the held-out cut (25 cm: 33 %, BIC drop −141).
 fn judge(
     setup: &Setup<'_>,
     kind: EffectKind,
@@ -568,6 +587,7 @@ fn judge(
     current_errors: &ModelErrors,
     current_params: usize,
     cfg: &DiagnoseConfig,
+    with_table: bool,
 ) -> CandidateResult {
     let (base_params, coeffs, effects, errors, res, parameters) = variant;
     let n_params = current_params + parameters;
@@ -609,9 +629,9 @@ fn judge(
     };
     let signature_cut = 1.0 - signature.rms_after / signature.rms_before;
     let earned = improvement >= cfg.min_improvement
-        && bic_drop >= cfg.min_bic_drop
+        && (with_table || bic_drop >= cfg.min_bic_drop)
         && signature_cut >= cfg.min_improvement;
-    let verdict = verdict(improvement, bic_drop, &signature, cfg);
+    let verdict = verdict(improvement, (!with_table).then_some(bic_drop), &signature, cfg);
     CandidateResult {
         name: kind.name(),
         rms: errors.rms_heldout,

@@ -189,6 +189,39 @@ impl Setup<'_> {
         self.residuals_with(&self.coeffs, effects)
     }
 
+    /// The residual every error of the diagnosis is judged by: the
+    /// contraction's ([`Self::residuals_with`]), or on an isometric record
+    /// the exact pressure error, the pressure the model needs to reach each
+    /// held length minus the measured one
+    /// ([`crate::evaluate::simulate::pressure_to_reach`], 26 bisection
+    /// steps a sample: once per model judged, while the fits run on the
+    /// first-order residual of [`Self::residuals_with`]).
+    pub(super) fn judged_residuals(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
+        if self.pressure_weight.is_none() {
+            return self.residuals_with(coeffs, effects);
+        }
+        let p = crate::evaluate::simulate::pressure_to_reach(
+            coeffs,
+            &effects,
+            self.tracker,
+            self.samples,
+            Some(&self.branches),
+            self.tables,
+            coeffs.params().points.max_pressure_mpa,
+        );
+        p.iter()
+            .zip(self.samples)
+            .zip(&self.excluded)
+            .map(|((p, s), &excluded)| {
+                if excluded {
+                    f64::NAN
+                } else {
+                    p - s.pressure_mpa
+                }
+            })
+            .collect()
+    }
+
     pub(super) fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
         simulate(
             coeffs,
@@ -219,7 +252,7 @@ impl Setup<'_> {
         effects: Effects,
         n_params: usize,
     ) -> (ModelErrors, Vec<f64>) {
-        let res = self.residuals_with(coeffs, effects);
+        let res = self.judged_residuals(coeffs, effects);
         let (rms_heldout, _) = rms_where(&res, |i| self.heldout[i]);
         let (rms_train, n_train) = rms_where(&res, |i| !self.heldout[i]);
         let bic = bic(rms_train, n_train, self.corr_len, n_params);

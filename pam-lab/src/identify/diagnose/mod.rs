@@ -320,8 +320,9 @@ pub fn diagnose_with_progress(
         train_record.samples.len()
     ));
     let fit = crate::identify::fit::fit(&train_record, &fit_cfg)?;
-    // fit's static shape on the same training part, judged as fit judges
-    // it (its own held-out cycles): the table variant of the
+    // fit's static shape on the same training part, as fit keeps it (its
+    // BIC and its own held-out cycles: a table that stands in for a creep
+    // or a rate law fails there): the table variant of the
     // `constraint_shape` candidate, which competes with the others.
     let stroke_table = if cfg.fit.static_shape {
         progress("fitting the static shape fit would keep on the training part");

@@ -226,9 +226,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
                 },
                 if c.earned { "  earns it" } else { "" }
             ));
-            if !c.earned {
-                s.push_str(&format!("      {}\n", c.verdict));
-            }
+            s.push_str(&format!("      {}\n", c.verdict));
             if let Some(v) = &c.variants {
                 s.push_str(&format!("      {v}\n"));
             }
