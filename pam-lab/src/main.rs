@@ -41,8 +41,9 @@ struct Common {
     /// No progress and no report; only warnings and errors (stderr).
     #[arg(short, long)]
     quiet: bool,
-    /// Progress on stderr: `auto` (a bar on a terminal, nothing when
-    /// redirected), `always` (plain lines when redirected), `never`.
+    /// Progress on stderr: `auto` (a bar on a terminal, a plain line per
+    /// stage when redirected: a diagnosis prints one per candidate and
+    /// round), `always` (plain lines, on a terminal too), `never`.
     #[arg(long, value_enum, default_value_t = ProgressMode::Auto)]
     progress: ProgressMode,
 }
@@ -336,7 +337,7 @@ impl Reporter {
     fn new(common: Common) -> Reporter {
         let tty = std::io::stderr().is_terminal();
         let on = !common.quiet && common.progress != ProgressMode::Never;
-        let bar = (on && tty).then(|| {
+        let bar = (on && tty && common.progress == ProgressMode::Auto).then(|| {
             let b = ProgressBar::new_spinner();
             b.set_style(
                 ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
@@ -347,7 +348,7 @@ impl Reporter {
         });
         Reporter {
             bar,
-            lines: on && !tty && common.progress == ProgressMode::Always,
+            lines: on && (!tty || common.progress == ProgressMode::Always),
             start: Instant::now(),
         }
     }

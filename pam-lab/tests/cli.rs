@@ -24,6 +24,39 @@ fn write_record(path: &Path, loads: &[f64]) {
 }
 
 #[test]
+fn progress_is_a_line_per_stage_when_redirected() {
+    // The test's stderr is a pipe: the default `--progress auto` writes
+    // plain lines there (a bar only on a terminal), `never` nothing.
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("rig.csv");
+    write_record(&data, &[100.0, 300.0]);
+    let fit = |out: &str, extra: &[&str]| {
+        let out = dir.path().join(out);
+        let mut args = vec![
+            "fit",
+            data.to_str().unwrap(),
+            "--no-plot",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        pam_lab(&args)
+    };
+    let (ok, stdout, stderr) = fit("auto", &[]);
+    assert!(ok, "{stdout}\n{stderr}");
+    let stage = |line: &str| line.starts_with('[') && line.contains(" s] ");
+    assert!(
+        stderr
+            .lines()
+            .any(|l| stage(l) && l.contains("least squares")),
+        "{stderr}"
+    );
+    let (ok, stdout, stderr) = fit("never", &["--progress", "never"]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(!stderr.lines().any(stage), "{stderr}");
+}
+
+#[test]
 fn fit_then_simulate_writes_every_output() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("rig.csv");
