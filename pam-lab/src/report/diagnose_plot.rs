@@ -7,6 +7,7 @@ use plotters::prelude::*;
 
 use crate::identify::diagnose::DiagnoseReport;
 use crate::record::Record;
+use crate::report::plot::tick_format;
 
 const BASE: RGBColor = RGBColor(200, 40, 40);
 const AFTER: RGBColor = RGBColor(30, 80, 200);
@@ -31,19 +32,20 @@ fn runs(mask: &[bool]) -> Vec<(usize, usize)> {
     out
 }
 
-/// Residual (measured − predicted contraction) against time, base and final
-/// model; held-out blocks shaded; regime bands along the bottom.
+/// Residual (model − measured contraction, the sign of `simulate`'s error
+/// and of the error tables) against time, base and final model; held-out
+/// blocks shaded; regime bands along the bottom.
 pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
     let s = &record.samples;
     let res_b: Vec<f64> = s
         .iter()
         .zip(&r.predicted_base)
-        .map(|(s, x)| s.contraction - x)
+        .map(|(s, x)| x - s.contraction)
         .collect();
     let res_a: Vec<f64> = s
         .iter()
         .zip(&r.predicted_after)
-        .map(|(s, x)| s.contraction - x)
+        .map(|(s, x)| x - s.contraction)
         .collect();
     let lim = res_b
         .iter()
@@ -75,15 +77,17 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
         .y_label_area_size(70)
         // Below the data: one strip per regime; above it: room for the legend.
         .build_cartesian_2d(t0..t1, (-1.32 * lim)..(1.6 * lim))?;
+    let (tt, rt) = (tick_format(t0, t1), tick_format(-lim, lim));
     chart
         .configure_mesh()
-        .x_desc("time, s")
-        .y_desc("measured - predicted contraction")
+        .x_desc("time (s)")
+        .y_desc("model − measured contraction (fraction of rest length)")
         .light_line_style(WHITE)
+        .x_label_formatter(&tt)
         // Ticks only where the residual is drawn, not on the strips or legend room.
         .y_label_formatter(&|v| {
             if v.abs() <= lim * 1.001 {
-                format!("{v:.3}")
+                rt(v)
             } else {
                 String::new()
             }
@@ -205,7 +209,7 @@ fn shown_block(
 
 /// Pressure–contraction loops of one held-out block (`shown_block`):
 /// measured (grey) against the paper's model (left) and the model with the
-/// added effects (right).
+/// added effects (right). Contraction on x and pressure on y, as `fit.png`.
 pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
     let s = &record.samples;
     let measured: Vec<f64> = s.iter().map(|x| x.contraction).collect();
@@ -269,16 +273,22 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..pmax.max(0.1), 0.0..xmax.max(0.05))?;
+            .build_cartesian_2d(0.0..xmax.max(0.05), 0.0..pmax.max(0.1))?;
+        let (xt, pt) = (
+            tick_format(0.0, xmax.max(0.05)),
+            tick_format(0.0, pmax.max(0.1)),
+        );
         chart
             .configure_mesh()
-            .x_desc("pressure, MPa")
-            .y_desc("contraction")
+            .x_desc("contraction (fraction of rest length)")
+            .y_desc("pressure (MPa)")
+            .x_label_formatter(&xt)
+            .y_label_formatter(&pt)
             .draw()?;
         chart
             .draw_series(idx.iter().map(|&i| {
                 Circle::new(
-                    (s[i].pressure_mpa, s[i].contraction),
+                    (s[i].contraction, s[i].pressure_mpa),
                     2,
                     RGBColor(150, 150, 150).filled(),
                 )
@@ -287,7 +297,7 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
             .legend(|(x, y)| Circle::new((x + 7, y), 3, RGBColor(150, 150, 150).filled()));
         chart
             .draw_series(LineSeries::new(
-                idx.iter().map(|&i| (s[i].pressure_mpa, pred[i])),
+                idx.iter().map(|&i| (pred[i], s[i].pressure_mpa)),
                 color.stroke_width(1),
             ))?
             .label("simulated from measured pressure")

@@ -7,7 +7,15 @@
 //!   test's own view. The model is drawn as the chip evaluates it, its
 //!   static shape included.
 //! * [`simulate_plot`]: measured and predicted contraction over time, and the
-//!   error.
+//!   error (model − measured).
+//!
+//! Every plot, here and in [`super::diagnose_plot`], follows the same rules:
+//! pressure on the y axis of a loop (contraction, or an isometric test's
+//! force, on x: the paper's Fig. 5, host-sim's characterisation plot and
+//! `diagnose`'s `loops.png` alike), an error or residual is model −
+//! measured and its axis says so, every axis names its quantity
+//! with the unit in parentheses, and tick labels come from [`tick_format`]
+//! (a zero prints as `0`, never `-0.000`).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -40,6 +48,22 @@ fn legend(area: &Area, entries: &[(String, ShapeStyle)]) -> Result<()> {
     }
     Ok(())
 }
+/// Tick labels of an axis over `lo..hi`: each tick with the fewest decimals
+/// that show it (to a millionth of the span), a zero (or the rounding noise
+/// of one) as `0`, so no `-0.000` or `0.0`.
+pub fn tick_format(lo: f64, hi: f64) -> impl Fn(&f64) -> String {
+    let tol = ((hi - lo).abs() * 1e-6).max(f64::MIN_POSITIVE);
+    move |v: &f64| {
+        if v.abs() < tol {
+            return "0".to_string();
+        }
+        (0..=9)
+            .map(|d| format!("{v:.d$}"))
+            .find(|s| s.parse::<f64>().is_ok_and(|r| (r - v).abs() < tol))
+            .unwrap_or_else(|| format!("{v}"))
+    }
+}
+
 /// Most points drawn per series (larger records are thinned evenly).
 const MAX_POINTS: usize = 20_000;
 
@@ -139,19 +163,23 @@ pub fn fit_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
         let root = root.titled(&title, ("sans-serif", 18)).map_err(e)?;
         let (plot_area, legend_area) = root.split_horizontally(SIZE.0 - LEGEND_W);
         let mut entries: Vec<(String, ShapeStyle)> = Vec::new();
+        let (xr, yr) = (
+            (xmin - 0.005)..(xmax + 0.005),
+            (-0.02 * pmax)..(1.05 * pmax),
+        );
+        let (xt, yt) = (tick_format(xr.start, xr.end), tick_format(yr.start, yr.end));
         let mut chart = ChartBuilder::on(&plot_area)
             .margin(15)
             .x_label_area_size(50)
             .y_label_area_size(70)
-            .build_cartesian_2d(
-                (xmin - 0.005)..(xmax + 0.005),
-                (-0.02 * pmax)..(1.05 * pmax),
-            )
+            .build_cartesian_2d(xr, yr)
             .map_err(e)?;
         chart
             .configure_mesh()
             .x_desc("contraction (fraction of rest length)")
             .y_desc("pressure (MPa)")
+            .x_label_formatter(&xt)
+            .y_label_formatter(&yt)
             .draw()
             .map_err(e)?;
         for (k, key) in keys.iter().enumerate() {
@@ -259,16 +287,20 @@ fn isometric_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
     let root = root.titled(&title, ("sans-serif", 18)).map_err(e)?;
     let (plot_area, legend_area) = root.split_horizontally(SIZE.0 - LEGEND_W);
     let mut entries: Vec<(String, ShapeStyle)> = Vec::new();
+    let (xr, yr) = (0.0..(1.05 * fmax.max(1.0)), (-0.02 * pmax)..(1.05 * pmax));
+    let (xt, yt) = (tick_format(xr.start, xr.end), tick_format(yr.start, yr.end));
     let mut chart = ChartBuilder::on(&plot_area)
         .margin(15)
         .x_label_area_size(50)
         .y_label_area_size(70)
-        .build_cartesian_2d(0.0..(1.05 * fmax.max(1.0)), (-0.02 * pmax)..(1.05 * pmax))
+        .build_cartesian_2d(xr, yr)
         .map_err(e)?;
     chart
         .configure_mesh()
         .x_desc("force on the muscle, the load (N)")
         .y_desc("pressure (MPa)")
+        .x_label_formatter(&xt)
+        .y_label_formatter(&yt)
         .draw()
         .map_err(e)?;
     for (k, &(x, n)) in held.iter().enumerate() {
@@ -291,10 +323,7 @@ fn isometric_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
         };
         chart.draw_series(pts(false)).map_err(e)?;
         chart.draw_series(pts(true)).map_err(e)?;
-        entries.push((
-            format!("contraction {x:.4} ({n} samples)"),
-            col.stroke_width(3),
-        ));
+        entries.push((format!("held at {x:.4} ({n} samples)"), col.stroke_width(3)));
         for (br, width) in [(Branch::Contraction, 3), (Branch::Expansion, 1)] {
             let curve: Vec<(f64, f64)> = (0..=200)
                 .map(|j| {
@@ -319,7 +348,8 @@ fn isometric_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
     Ok(())
 }
 
-/// Measured and predicted contraction over time, and the error.
+/// Measured and predicted contraction over time, and the error (model −
+/// measured contraction, [`SimSample::error`]).
 pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()> {
     if sim.is_empty() {
         return Err(anyhow!("plot: nothing to plot"));
@@ -355,14 +385,20 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
             ],
         )?;
         let (top, bottom) = root.split_vertically(480);
+        let tt = tick_format(t0, t1);
+        let yr = (ymin - 0.005)..(ymax + 0.005);
+        let yt = tick_format(yr.start, yr.end);
         let mut c1 = ChartBuilder::on(&top)
             .margin(15)
-            .x_label_area_size(35)
+            .x_label_area_size(45)
             .y_label_area_size(70)
-            .build_cartesian_2d(t0..t1, (ymin - 0.005)..(ymax + 0.005))
+            .build_cartesian_2d(t0..t1, yr)
             .map_err(e)?;
         c1.configure_mesh()
-            .y_desc("contraction")
+            .x_desc("time (s)")
+            .y_desc("contraction (fraction of rest length)")
+            .x_label_formatter(&tt)
+            .y_label_formatter(&yt)
             .draw()
             .map_err(e)?;
         c1.draw_series(LineSeries::new(
@@ -379,6 +415,7 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
             color(1),
         ))
         .map_err(e)?;
+        let et = tick_format(-1.05 * emax, 1.05 * emax);
         let mut c2 = ChartBuilder::on(&bottom)
             .margin(15)
             .x_label_area_size(45)
@@ -387,7 +424,11 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
             .map_err(e)?;
         c2.configure_mesh()
             .x_desc("time (s)")
-            .y_desc("model − measured")
+            // The contraction error (the panel above names the quantity):
+            // the label fits the lower panel's height.
+            .y_desc("model − measured (fraction of rest length)")
+            .x_label_formatter(&tt)
+            .y_label_formatter(&et)
             .draw()
             .map_err(e)?;
         c2.draw_series(LineSeries::new(
@@ -426,5 +467,24 @@ mod font_tests {
             bytes
         )
         .is_ok());
+    }
+}
+
+#[cfg(test)]
+mod tick_tests {
+    use super::tick_format;
+
+    #[test]
+    fn a_zero_tick_prints_as_0_and_others_with_the_decimals_they_need() {
+        let t = tick_format(-0.04, 0.04);
+        // The rounding noise of a zero tick, either sign.
+        assert_eq!(t(&-1.3e-17), "0");
+        assert_eq!(t(&0.0), "0");
+        assert_eq!(t(&-0.01), "-0.01");
+        assert_eq!(t(&0.015), "0.015");
+        assert_eq!(t(&(0.1 + 0.2 - 0.3 + 0.02)), "0.02");
+        let t = tick_format(0.0, 900.0);
+        assert_eq!(t(&300.0), "300");
+        assert_eq!(t(&0.0), "0");
     }
 }
