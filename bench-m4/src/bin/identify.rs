@@ -47,6 +47,7 @@ use nalgebra::{DMatrix, DVector};
 use pam_core::effects::{Effects, NonLocalMemory};
 use pam_core::Simulator;
 use pam_core::{Coeffs, Params, TrackerConfig};
+use pam_lab::export::model_file::{f32_literal, params_literal, ParamsLayout};
 use pam_lab::identify::fit::{heldout_mask, FitConfig, Holdout};
 use pam_lab::record::split::{split_branches, SplitConfig};
 use pam_lab::record::Sample;
@@ -346,43 +347,9 @@ fn memory_errors(coeffs: &Coeffs, shape: f32, samples: &[Sample], heldout: &[boo
 // ---------------------------------------------------------------------------
 // Output
 
-fn f(x: f32) -> String {
-    let s = format!("{x:?}");
-    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
-        s
-    } else {
-        format!("{s}.0")
-    }
-}
-
 fn arr(xs: &[f32]) -> String {
-    let v: Vec<String> = xs.iter().map(|&x| f(x)).collect();
+    let v: Vec<String> = xs.iter().map(|&x| f32_literal(x)).collect();
     format!("[{}]", v.join(", "))
-}
-
-fn params_src(p: &Params) -> String {
-    let pt = |q: &pam_core::Point| {
-        format!(
-            "Point {{ contraction: {}, pressure_mpa: {} }}",
-            f(q.contraction),
-            f(q.pressure_mpa)
-        )
-    };
-    format!(
-        "Params {{\n    min_load_n: {},\n    max_load_n: {},\n    load_step_n: {},\n    points: CriticalPoints {{\n        root_contraction: {},\n        max_contraction: {},\n        max_pressure_mpa: {},\n        tangency: {},\n        inflection: {},\n    }},\n    root_regression_per_step: {},\n    max_regression_per_step: {},\n    c_growth_per_step: {},\n    ellipse_height_mpa: {},\n}}",
-        f(p.min_load_n),
-        f(p.max_load_n),
-        f(p.load_step_n),
-        f(p.points.root_contraction),
-        f(p.points.max_contraction),
-        f(p.points.max_pressure_mpa),
-        pt(&p.points.tangency),
-        pt(&p.points.inflection),
-        f(p.root_regression_per_step),
-        f(p.max_regression_per_step),
-        f(p.c_growth_per_step),
-        f(p.ellipse_height_mpa),
-    )
 }
 
 fn main() {
@@ -487,26 +454,32 @@ fn main() {
         src,
         "/// pam-core's parameters: {}.\npub const PAM_PARAMS: Params = {};\n",
         pam_source.replace('`', ""),
-        params_src(&params)
+        params_literal(
+            &params,
+            ParamsLayout {
+                type_prefix: "",
+                inline_points: true,
+            }
+        )
     );
     let _ = writeln!(
         src,
         "/// Shape of the non-local memory (chosen on the training samples).\npub const MEMORY_SHAPE: f32 = {};\n",
-        f(shape)
+        f32_literal(shape)
     );
     let _ = writeln!(
         src,
         "/// Prandtl–Ishlinskii, {N} play operators, at {L} loads.\npub const PI16: PiTable<{N}, {L}> = PiTable {{\n    thresholds_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
         arr(&pi.thresholds_mpa),
-        f(pi.min_load_n),
-        f(pi.load_step_n)
+        f32_literal(pi.min_load_n),
+        f32_literal(pi.load_step_n)
     );
     for c in &pi.grid {
         let _ = writeln!(
             src,
             "        PiCoeffs {{\n            bias: {},\n            linear: {},\n            weights: {},\n        }},",
-            f(c.bias),
-            f(c.linear),
+            f32_literal(c.bias),
+            f32_literal(c.linear),
             arr(&c.weights)
         );
     }
@@ -515,14 +488,14 @@ fn main() {
         src,
         "/// Generalised Prandtl–Ishlinskii, {GPI_N} play operators and a cubic input nonlinearity, at {L} loads.\npub const GPI4: GpiTable<{GPI_N}, {L}> = GpiTable {{\n    thresholds_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
         arr(&gpi.thresholds_mpa),
-        f(gpi.min_load_n),
-        f(gpi.load_step_n)
+        f32_literal(gpi.min_load_n),
+        f32_literal(gpi.load_step_n)
     );
     for c in &gpi.grid {
         let _ = writeln!(
             src,
             "        GpiCoeffs {{\n            bias: {},\n            cubic: {},\n            weights: {},\n        }},",
-            f(c.bias),
+            f32_literal(c.bias),
             arr(&c.cubic),
             arr(&c.weights)
         );
@@ -531,17 +504,17 @@ fn main() {
     let _ = writeln!(
         src,
         "/// Preisach, {N} × {N} half-grid (row prefix sums), at {L} loads.\npub const PREISACH16: PreisachTable<{N}, {L}> = PreisachTable {{\n    lo_mpa: {},\n    step_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
-        f(pr.lo_mpa),
-        f(pr.step_mpa),
-        f(pr.min_load_n),
-        f(pr.load_step_n)
+        f32_literal(pr.lo_mpa),
+        f32_literal(pr.step_mpa),
+        f32_literal(pr.min_load_n),
+        f32_literal(pr.load_step_n)
     );
     for c in &pr.grid {
         let _ = writeln!(
             src,
             "        PreisachCoeffs {{\n            bias: {},\n            linear: {},\n            everett: [",
-            f(c.bias),
-            f(c.linear)
+            f32_literal(c.bias),
+            f32_literal(c.linear)
         );
         for row in &c.everett {
             let _ = writeln!(src, "                {},", arr(row));
