@@ -214,7 +214,6 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
         out.join("train.csv").to_str().unwrap(),
         "--validate",
         out.join("test.csv").to_str().unwrap(),
-        "--no-plot",
         "-o",
         diag.to_str().unwrap(),
     ]);
@@ -249,6 +248,11 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
     // decoder takes its blob.
     let blob = std::fs::read(diag.join("model.blob")).unwrap();
     assert!(pam_core::blob::decode_model(&blob).is_ok());
+    // Its plots, in pressure (residual.png) and pressure against force
+    // (loops.png).
+    for png in ["residual.png", "loops.png"] {
+        assert!(diag.join(png).metadata().unwrap().len() > 10_000, "{png}");
+    }
 }
 
 #[test]

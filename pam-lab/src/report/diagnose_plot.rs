@@ -32,20 +32,35 @@ fn runs(mask: &[bool]) -> Vec<(usize, usize)> {
     out
 }
 
+/// The measured value of what the diagnosis predicts: the contraction, or
+/// on an isometric record the pressure; and its axis label.
+fn measured(r: &DiagnoseReport, s: &crate::record::Sample) -> f64 {
+    if isometric(r) {
+        s.pressure_mpa
+    } else {
+        s.contraction
+    }
+}
+
+fn isometric(r: &DiagnoseReport) -> bool {
+    r.test_kind == crate::identify::fit::TestKind::Isometric
+}
+
 /// Residual (model − measured contraction, the sign of `simulate`'s error
-/// and of the error tables) against time, base and final model; held-out
-/// blocks shaded; regime bands along the bottom.
+/// and of the error tables; on an isometric record model − measured
+/// pressure) against time, base and final model; held-out blocks shaded;
+/// regime bands along the bottom.
 pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
     let s = &record.samples;
     let res_b: Vec<f64> = s
         .iter()
         .zip(&r.predicted_base)
-        .map(|(s, x)| x - s.contraction)
+        .map(|(s, x)| x - measured(r, s))
         .collect();
     let res_a: Vec<f64> = s
         .iter()
         .zip(&r.predicted_after)
-        .map(|(s, x)| x - s.contraction)
+        .map(|(s, x)| x - measured(r, s))
         .collect();
     let lim = res_b
         .iter()
@@ -81,7 +96,11 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
     chart
         .configure_mesh()
         .x_desc("time (s)")
-        .y_desc("model − measured contraction (fraction of rest length)")
+        .y_desc(if isometric(r) {
+            "model − measured pressure (MPa)"
+        } else {
+            "model − measured contraction (fraction of rest length)"
+        })
         .light_line_style(WHITE)
         .x_label_formatter(&tt)
         // Ticks only where the residual is drawn, not on the strips or legend room.
@@ -148,18 +167,35 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
             .label(format!("strip {}: {name}", k + 1))
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 15, y + 5)], color.filled()));
     }
+    // Broken where the residual is not defined (an isometric test's slack
+    // samples, judged on nothing).
+    let pieces = |res: &[f64]| -> Vec<Vec<(f64, f64)>> {
+        let mut out: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+        for (i, v) in res.iter().enumerate() {
+            if v.is_finite() {
+                if let Some(p) = out.last_mut() {
+                    p.push((t(i), *v));
+                }
+            } else if out.last().is_some_and(|p| !p.is_empty()) {
+                out.push(Vec::new());
+            }
+        }
+        out
+    };
     chart
-        .draw_series(LineSeries::new(
-            (0..s.len()).map(|i| (t(i), res_b[i])),
-            BASE.stroke_width(1),
-        ))?
+        .draw_series(
+            pieces(&res_b)
+                .into_iter()
+                .map(|p| PathElement::new(p, BASE.stroke_width(1))),
+        )?
         .label("paper's model")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 15, y)], BASE.stroke_width(2)));
     chart
-        .draw_series(LineSeries::new(
-            (0..s.len()).map(|i| (t(i), res_a[i])),
-            AFTER.stroke_width(1),
-        ))?
+        .draw_series(
+            pieces(&res_a)
+                .into_iter()
+                .map(|p| PathElement::new(p, AFTER.stroke_width(1))),
+        )?
         .label("with added effects")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 15, y)], AFTER.stroke_width(2)));
     chart
@@ -210,7 +246,14 @@ fn shown_block(
 /// Pressure–contraction loops of one held-out block (`shown_block`):
 /// measured (grey) against the paper's model (left) and the model with the
 /// added effects (right). Contraction on x and pressure on y, as `fit.png`.
+///
+/// On an isometric record (the length held, the pressure its answer) the
+/// loops are pressure against force: measured, and the pressure the model
+/// needs at the held length and the measured force.
 pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
+    if isometric(r) {
+        return isometric_loops_plot(r, record, path);
+    }
     let s = &record.samples;
     let measured: Vec<f64> = s.iter().map(|x| x.contraction).collect();
     let ((a, b), why) = shown_block(&r.heldout, &measured, &r.predicted_base, &r.predicted_after)
@@ -301,6 +344,110 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
                 color.stroke_width(1),
             ))?
             .label("simulated from measured pressure")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 15, y)], color.stroke_width(2))
+            });
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()?;
+    }
+    root.present()?;
+    Ok(())
+}
+
+/// [`loops_plot`] of an isometric record: pressure against force on one
+/// held-out block, measured (grey) against the paper's model (left) and the
+/// diagnosed one (right).
+fn isometric_loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
+    let s = &record.samples;
+    let measured: Vec<f64> = s.iter().map(|x| x.pressure_mpa).collect();
+    let ((a, b), why) = shown_block(&r.heldout, &measured, &r.predicted_base, &r.predicted_after)
+        .unwrap_or(((0, s.len().saturating_sub(1)), "the whole record"));
+    let idx: Vec<usize> = (a..=b).filter(|&i| r.heldout[i]).collect();
+    let fmax = idx.iter().map(|&i| s[i].load_n).fold(0.0f64, f64::max) * 1.05;
+    let pmax = idx
+        .iter()
+        .map(|&i| s[i].pressure_mpa)
+        .chain(idx.iter().map(|&i| r.predicted_after[i]))
+        .chain(idx.iter().map(|&i| r.predicted_base[i]))
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max)
+        * 1.05;
+    crate::report::plot::ensure_font();
+    let root = BitMapBackend::new(path, (1600, 730)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let held = idx.first().map_or(0.0, |&i| s[i].contraction);
+    let (t_a, t_b) = (
+        idx.first().map_or(0.0, |&i| s[i].t_s),
+        idx.last().map_or(0.0, |&i| s[i].t_s),
+    );
+    let root = root.titled(
+        &format!(
+            "{}: held-out block {t_a:.0}–{t_b:.0} s, held at contraction {held:.4} ({why})",
+            r.source
+        ),
+        ("sans-serif", 20),
+    )?;
+    let panels = root.split_evenly((1, 2));
+    for (k, panel) in panels.iter().enumerate() {
+        let (pred, color, name, rms) = if k == 0 {
+            (
+                &r.predicted_base,
+                BASE,
+                "paper's model".to_string(),
+                r.rms_before,
+            )
+        } else {
+            (
+                &r.predicted_after,
+                AFTER,
+                if r.effects_added.is_empty() {
+                    "no effect added".to_string()
+                } else {
+                    format!("+ {}", r.effects_added.join(" + "))
+                },
+                r.rms_after,
+            )
+        };
+        let (f_hi, p_hi) = (fmax.max(1.0), pmax.max(0.1));
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("{name} (held-out RMS of the record {rms:.4} MPa)"),
+                ("sans-serif", 20),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..f_hi, 0.0..p_hi)?;
+        let (ft, pt) = (tick_format(0.0, f_hi), tick_format(0.0, p_hi));
+        chart
+            .configure_mesh()
+            .x_desc("force (N)")
+            .y_desc("pressure (MPa)")
+            .x_label_formatter(&ft)
+            .y_label_formatter(&pt)
+            .draw()?;
+        chart
+            .draw_series(idx.iter().map(|&i| {
+                Circle::new(
+                    (s[i].load_n, s[i].pressure_mpa),
+                    2,
+                    RGBColor(150, 150, 150).filled(),
+                )
+            }))?
+            .label("measured")
+            .legend(|(x, y)| Circle::new((x + 7, y), 3, RGBColor(150, 150, 150).filled()));
+        chart
+            .draw_series(LineSeries::new(
+                idx.iter()
+                    .filter(|&&i| pred[i].is_finite())
+                    .map(|&i| (s[i].load_n, pred[i])),
+                color.stroke_width(1),
+            ))?
+            .label("pressure the model needs at the held length")
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 15, y)], color.stroke_width(2))
             });

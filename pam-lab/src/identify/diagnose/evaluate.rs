@@ -200,16 +200,8 @@ impl Setup<'_> {
         if self.pressure_weight.is_none() {
             return self.residuals_with(coeffs, effects);
         }
-        let p = crate::evaluate::simulate::pressure_to_reach(
-            coeffs,
-            &effects,
-            self.tracker,
-            self.samples,
-            Some(&self.branches),
-            self.tables,
-            coeffs.params().points.max_pressure_mpa,
-        );
-        p.iter()
+        self.predicted(coeffs, effects)
+            .iter()
             .zip(self.samples)
             .zip(&self.excluded)
             .map(|((p, s), &excluded)| {
@@ -220,6 +212,40 @@ impl Setup<'_> {
                 }
             })
             .collect()
+    }
+
+    /// The model's prediction of the quantity its residual measures: the
+    /// contraction simulated from the measured pressure, or on an isometric
+    /// record the pressure each held length takes
+    /// ([`crate::evaluate::simulate::pressure_to_reach`]); `NaN` on the
+    /// samples no model is judged on.
+    pub(super) fn predicted(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
+        let mut out = if self.pressure_weight.is_none() {
+            simulate(
+                coeffs,
+                effects,
+                self.tracker,
+                self.samples,
+                &self.branches,
+                self.tables,
+            )
+        } else {
+            crate::evaluate::simulate::pressure_to_reach(
+                coeffs,
+                &effects,
+                self.tracker,
+                self.samples,
+                Some(&self.branches),
+                self.tables,
+                coeffs.params().points.max_pressure_mpa,
+            )
+        };
+        for (v, &excluded) in out.iter_mut().zip(&self.excluded) {
+            if excluded {
+                *v = f64::NAN;
+            }
+        }
+        out
     }
 
     pub(super) fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {

@@ -467,22 +467,8 @@ pub fn diagnose_with_progress(
         ..
     } = chosen;
 
-    let predicted_base = simulate(
-        &refit_base_coeffs,
-        setup.base_effects,
-        tracker,
-        samples,
-        &setup.branches,
-        setup.tables,
-    );
-    let predicted_after = simulate(
-        &model_coeffs,
-        current,
-        tracker,
-        samples,
-        &setup.branches,
-        setup.tables,
-    );
+    let predicted_base = setup.predicted(&refit_base_coeffs, setup.base_effects);
+    let predicted_after = setup.predicted(&model_coeffs, current);
     let candidates = rounds
         .first()
         .map(|r| {

@@ -121,10 +121,12 @@ pub struct DiagnoseReport {
     /// Segments the hold-out moved to the held-out part so that a regime
     /// the pressure decides is held out too ([`crate::record::split::cover_regime`]).
     pub holdout_cover: Vec<HoldoutCover>,
-    /// Predicted contraction of the base and final models (not serialised).
+    /// The base model's prediction of the quantity the residual measures
+    /// (`residual`): the contraction, or on an isometric record the
+    /// pressure each held length takes (not serialised).
     #[serde(skip)]
     pub predicted_base: Vec<f64>,
-    /// Final model prediction (not serialised).
+    /// The final model's (not serialised).
     #[serde(skip)]
     pub predicted_after: Vec<f64>,
     /// Held-out mask (not serialised).
