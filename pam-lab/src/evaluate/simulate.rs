@@ -80,6 +80,24 @@ pub enum InverseTables {
     Never,
 }
 
+/// The simulator at a record's first sample: on the contraction branch at
+/// its load, building inverse tables as `tables` says; `None` when the
+/// effects do not validate.
+fn start(
+    coeffs: &Coeffs,
+    effects: &Effects,
+    config: TrackerConfig,
+    samples: &[Sample],
+    tables: InverseTables,
+) -> Option<Simulator<MEMORY_DEPTH>> {
+    let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
+    let mut sim = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load).ok()?;
+    if tables == InverseTables::Never {
+        sim.defer_table_builds();
+    }
+    Some(sim)
+}
+
 /// The record simulator every tool uses: pam-core's [`Simulator`] driven
 /// by each sample's measured pressure and load, the tracker starting on
 /// the contraction branch at the first sample's load; on the tracker's own
@@ -98,13 +116,9 @@ pub fn run_record(
     tables: InverseTables,
     mut each: impl FnMut(usize, &Simulator<MEMORY_DEPTH>, f32),
 ) -> bool {
-    let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
-    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load) else {
+    let Some(mut sim) = start(coeffs, effects, config, samples, tables) else {
         return false;
     };
-    if tables == InverseTables::Never {
-        sim.defer_table_builds();
-    }
     let t0 = samples.first().map_or(0.0, |s| s.t_s);
     for (i, s) in samples.iter().enumerate() {
         let (t, p, l) = ((s.t_s - t0) as f32, s.pressure_mpa as f32, s.load_n as f32);
@@ -145,13 +159,9 @@ pub fn pressure_to_reach(
     pressure_limit_mpa: f32,
 ) -> Vec<f64> {
     let mut out = vec![f64::NAN; samples.len()];
-    let first_load = samples.first().map_or(0.0, |s| s.load_n as f32);
-    let Ok(mut sim) = Simulator::<MEMORY_DEPTH>::new(*coeffs, *effects, config, first_load) else {
+    let Some(mut sim) = start(coeffs, effects, config, samples, tables) else {
         return out;
     };
-    if tables == InverseTables::Never {
-        sim.defer_table_builds();
-    }
     let t0 = samples.first().map_or(0.0, |s| s.t_s);
     for (i, s) in samples.iter().enumerate() {
         let (t, l) = ((s.t_s - t0) as f32, s.load_n as f32);

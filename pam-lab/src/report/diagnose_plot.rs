@@ -251,42 +251,79 @@ fn shown_block(
 /// loops are pressure against force: measured, and the pressure the model
 /// needs at the held length and the measured force.
 pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
-    if isometric(r) {
-        return isometric_loops_plot(r, record, path);
-    }
     let s = &record.samples;
-    let measured: Vec<f64> = s.iter().map(|x| x.contraction).collect();
+    let iso = isometric(r);
+    let measured: Vec<f64> = s.iter().map(|x| measured(r, x)).collect();
     let ((a, b), why) = shown_block(&r.heldout, &measured, &r.predicted_base, &r.predicted_after)
         .unwrap_or(((0, s.len().saturating_sub(1)), "the whole record"));
-    let idx: Vec<usize> = (a..=b).collect();
-    let xmax = idx
-        .iter()
-        .map(|&i| s[i].contraction)
-        .chain(idx.iter().map(|&i| r.predicted_after[i]))
-        .chain(idx.iter().map(|&i| r.predicted_base[i]))
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max)
-        * 1.05;
-    let pmax = idx
-        .iter()
-        .map(|&i| s[i].pressure_mpa)
-        .fold(0.0f64, f64::max)
-        * 1.05;
+    let idx: Vec<usize> = (a..=b)
+        .filter(|&i| r.heldout.get(i) != Some(&false) || !iso)
+        .collect();
+    // The measured point of sample `i`, and the model's from its prediction.
+    let point = |i: usize| -> (f64, f64) {
+        if iso {
+            (s[i].load_n, s[i].pressure_mpa)
+        } else {
+            (s[i].contraction, s[i].pressure_mpa)
+        }
+    };
+    let model_point = |i: usize, pred: f64| -> (f64, f64) {
+        if iso {
+            (s[i].load_n, pred)
+        } else {
+            (pred, s[i].pressure_mpa)
+        }
+    };
+    let (mut x_hi, mut y_hi) = (0.0f64, 0.0f64);
+    for &i in &idx {
+        for (x, y) in [
+            point(i),
+            model_point(i, r.predicted_base[i]),
+            model_point(i, r.predicted_after[i]),
+        ] {
+            if x.is_finite() && y.is_finite() {
+                (x_hi, y_hi) = (x_hi.max(x), y_hi.max(y));
+            }
+        }
+    }
+    let (x_hi, y_hi) = if iso {
+        ((1.05 * x_hi).max(1.0), (1.05 * y_hi).max(0.1))
+    } else {
+        ((1.05 * x_hi).max(0.05), (1.05 * y_hi).max(0.1))
+    };
     crate::report::plot::ensure_font();
     let root = BitMapBackend::new(path, (1600, 730)).into_drawing_area();
     root.fill(&WHITE)?;
-    let load = idx.first().map_or(0.0, |&i| s[i].load_n);
+    let first = idx.first().copied().unwrap_or(0);
     let (t_a, t_b) = (
         idx.first().map_or(0.0, |&i| s[i].t_s),
         idx.last().map_or(0.0, |&i| s[i].t_s),
     );
+    let at = match s.get(first) {
+        Some(x) if iso => format!("held at contraction {:.4}", x.contraction),
+        Some(x) => format!("at {:.0} N", x.load_n),
+        None => String::new(),
+    };
     let root = root.titled(
         &format!(
-            "{}: held-out block {t_a:.0}–{t_b:.0} s at {load:.0} N ({why})",
+            "{}: held-out block {t_a:.0}–{t_b:.0} s {at} ({why})",
             r.source
         ),
         ("sans-serif", 20),
     )?;
+    let (x_desc, rms_unit, model_label) = if iso {
+        (
+            "force (N)",
+            " MPa",
+            "pressure the model needs at the held length",
+        )
+    } else {
+        (
+            "contraction (fraction of rest length)",
+            "",
+            "simulated from measured pressure",
+        )
+    };
     let panels = root.split_evenly((1, 2));
     for (k, panel) in panels.iter().enumerate() {
         let (pred, color, name, rms) = if k == 0 {
@@ -310,144 +347,36 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
         };
         let mut chart = ChartBuilder::on(panel)
             .caption(
-                format!("{name} (held-out RMS of the record {rms:.5})"),
+                format!("{name} (held-out RMS of the record {rms:.5}{rms_unit})"),
                 ("sans-serif", 20),
             )
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..xmax.max(0.05), 0.0..pmax.max(0.1))?;
-        let (xt, pt) = (
-            tick_format(0.0, xmax.max(0.05)),
-            tick_format(0.0, pmax.max(0.1)),
-        );
+            .build_cartesian_2d(0.0..x_hi, 0.0..y_hi)?;
+        let (xt, yt) = (tick_format(0.0, x_hi), tick_format(0.0, y_hi));
         chart
             .configure_mesh()
-            .x_desc("contraction (fraction of rest length)")
+            .x_desc(x_desc)
             .y_desc("pressure (MPa)")
             .x_label_formatter(&xt)
-            .y_label_formatter(&pt)
+            .y_label_formatter(&yt)
             .draw()?;
         chart
-            .draw_series(idx.iter().map(|&i| {
-                Circle::new(
-                    (s[i].contraction, s[i].pressure_mpa),
-                    2,
-                    RGBColor(150, 150, 150).filled(),
-                )
-            }))?
-            .label("measured")
-            .legend(|(x, y)| Circle::new((x + 7, y), 3, RGBColor(150, 150, 150).filled()));
-        chart
-            .draw_series(LineSeries::new(
-                idx.iter().map(|&i| (pred[i], s[i].pressure_mpa)),
-                color.stroke_width(1),
-            ))?
-            .label("simulated from measured pressure")
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 15, y)], color.stroke_width(2))
-            });
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperLeft)
-            .draw()?;
-    }
-    root.present()?;
-    Ok(())
-}
-
-/// [`loops_plot`] of an isometric record: pressure against force on one
-/// held-out block, measured (grey) against the paper's model (left) and the
-/// diagnosed one (right).
-fn isometric_loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
-    let s = &record.samples;
-    let measured: Vec<f64> = s.iter().map(|x| x.pressure_mpa).collect();
-    let ((a, b), why) = shown_block(&r.heldout, &measured, &r.predicted_base, &r.predicted_after)
-        .unwrap_or(((0, s.len().saturating_sub(1)), "the whole record"));
-    let idx: Vec<usize> = (a..=b).filter(|&i| r.heldout[i]).collect();
-    let fmax = idx.iter().map(|&i| s[i].load_n).fold(0.0f64, f64::max) * 1.05;
-    let pmax = idx
-        .iter()
-        .map(|&i| s[i].pressure_mpa)
-        .chain(idx.iter().map(|&i| r.predicted_after[i]))
-        .chain(idx.iter().map(|&i| r.predicted_base[i]))
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max)
-        * 1.05;
-    crate::report::plot::ensure_font();
-    let root = BitMapBackend::new(path, (1600, 730)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let held = idx.first().map_or(0.0, |&i| s[i].contraction);
-    let (t_a, t_b) = (
-        idx.first().map_or(0.0, |&i| s[i].t_s),
-        idx.last().map_or(0.0, |&i| s[i].t_s),
-    );
-    let root = root.titled(
-        &format!(
-            "{}: held-out block {t_a:.0}–{t_b:.0} s, held at contraction {held:.4} ({why})",
-            r.source
-        ),
-        ("sans-serif", 20),
-    )?;
-    let panels = root.split_evenly((1, 2));
-    for (k, panel) in panels.iter().enumerate() {
-        let (pred, color, name, rms) = if k == 0 {
-            (
-                &r.predicted_base,
-                BASE,
-                "paper's model".to_string(),
-                r.rms_before,
-            )
-        } else {
-            (
-                &r.predicted_after,
-                AFTER,
-                if r.effects_added.is_empty() {
-                    "no effect added".to_string()
-                } else {
-                    format!("+ {}", r.effects_added.join(" + "))
-                },
-                r.rms_after,
-            )
-        };
-        let (f_hi, p_hi) = (fmax.max(1.0), pmax.max(0.1));
-        let mut chart = ChartBuilder::on(panel)
-            .caption(
-                format!("{name} (held-out RMS of the record {rms:.4} MPa)"),
-                ("sans-serif", 20),
-            )
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..f_hi, 0.0..p_hi)?;
-        let (ft, pt) = (tick_format(0.0, f_hi), tick_format(0.0, p_hi));
-        chart
-            .configure_mesh()
-            .x_desc("force (N)")
-            .y_desc("pressure (MPa)")
-            .x_label_formatter(&ft)
-            .y_label_formatter(&pt)
-            .draw()?;
-        chart
-            .draw_series(idx.iter().map(|&i| {
-                Circle::new(
-                    (s[i].load_n, s[i].pressure_mpa),
-                    2,
-                    RGBColor(150, 150, 150).filled(),
-                )
-            }))?
+            .draw_series(
+                idx.iter()
+                    .map(|&i| Circle::new(point(i), 2, RGBColor(150, 150, 150).filled())),
+            )?
             .label("measured")
             .legend(|(x, y)| Circle::new((x + 7, y), 3, RGBColor(150, 150, 150).filled()));
         chart
             .draw_series(LineSeries::new(
                 idx.iter()
-                    .filter(|&&i| pred[i].is_finite())
-                    .map(|&i| (s[i].load_n, pred[i])),
+                    .map(|&i| model_point(i, pred[i]))
+                    .filter(|(x, y)| x.is_finite() && y.is_finite()),
                 color.stroke_width(1),
             ))?
-            .label("pressure the model needs at the held length")
+            .label(model_label)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 15, y)], color.stroke_width(2))
             });

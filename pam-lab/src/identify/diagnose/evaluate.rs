@@ -200,18 +200,11 @@ impl Setup<'_> {
         if self.pressure_weight.is_none() {
             return self.residuals_with(coeffs, effects);
         }
-        self.predicted(coeffs, effects)
-            .iter()
-            .zip(self.samples)
-            .zip(&self.excluded)
-            .map(|((p, s), &excluded)| {
-                if excluded {
-                    f64::NAN
-                } else {
-                    p - s.pressure_mpa
-                }
-            })
-            .collect()
+        self.residual_of(
+            &self.predicted_raw(coeffs, effects),
+            |s| s.pressure_mpa,
+            None,
+        )
     }
 
     /// The model's prediction of the quantity its residual measures: the
@@ -220,26 +213,7 @@ impl Setup<'_> {
     /// ([`crate::evaluate::simulate::pressure_to_reach`]); `NaN` on the
     /// samples no model is judged on.
     pub(super) fn predicted(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
-        let mut out = if self.pressure_weight.is_none() {
-            simulate(
-                coeffs,
-                effects,
-                self.tracker,
-                self.samples,
-                &self.branches,
-                self.tables,
-            )
-        } else {
-            crate::evaluate::simulate::pressure_to_reach(
-                coeffs,
-                &effects,
-                self.tracker,
-                self.samples,
-                Some(&self.branches),
-                self.tables,
-                coeffs.params().points.max_pressure_mpa,
-            )
-        };
+        let mut out = self.predicted_raw(coeffs, effects);
         for (v, &excluded) in out.iter_mut().zip(&self.excluded) {
             if excluded {
                 *v = f64::NAN;
@@ -248,7 +222,22 @@ impl Setup<'_> {
         out
     }
 
-    pub(super) fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
+    fn predicted_raw(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
+        if self.pressure_weight.is_none() {
+            return self.contraction(coeffs, effects);
+        }
+        crate::evaluate::simulate::pressure_to_reach(
+            coeffs,
+            &effects,
+            self.tracker,
+            self.samples,
+            Some(&self.branches),
+            self.tables,
+            coeffs.params().points.max_pressure_mpa,
+        )
+    }
+
+    fn contraction(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
         simulate(
             coeffs,
             effects,
@@ -257,19 +246,41 @@ impl Setup<'_> {
             &self.branches,
             self.tables,
         )
-        .iter()
-        .zip(self.samples)
-        .zip(&self.excluded)
-        .enumerate()
-        .map(|(i, ((x, s), &excluded))| {
-            if excluded {
-                f64::NAN
-            } else {
-                let w = self.pressure_weight.as_ref().map_or(1.0, |w| w[i]);
-                w * (s.contraction - x)
-            }
-        })
-        .collect()
+    }
+
+    /// `predicted` minus the measured value (`measured`), times each
+    /// sample's `weight` when given; `NaN` on the excluded samples.
+    fn residual_of(
+        &self,
+        predicted: &[f64],
+        measured: impl Fn(&Sample) -> f64,
+        weight: Option<&[f64]>,
+    ) -> Vec<f64> {
+        predicted
+            .iter()
+            .zip(self.samples)
+            .zip(&self.excluded)
+            .enumerate()
+            .map(|(i, ((p, s), &excluded))| {
+                if excluded {
+                    f64::NAN
+                } else {
+                    weight.map_or(1.0, |w| w[i]) * (p - measured(s))
+                }
+            })
+            .collect()
+    }
+
+    /// The residual the fits run on: measured minus simulated contraction,
+    /// on an isometric record times each sample's pressure weight
+    /// ([`pressure_weights`]: then about the model's pressure minus the
+    /// measured one); `NaN` on the excluded samples.
+    pub(super) fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
+        let x = self.contraction(coeffs, effects);
+        self.residual_of(&x, |s| s.contraction, self.pressure_weight.as_deref())
+            .into_iter()
+            .map(|r| -r)
+            .collect()
     }
 
     pub(super) fn errors(
