@@ -540,14 +540,14 @@ pub(super) fn evaluate_candidate(
         }
         _ => None,
     };
-    let judge =
+    let judged =
         |v: Variant, table: bool| judge(setup, kind, v, current_errors, current_params, cfg, table);
     match with_table {
-        None => judge(plain, false),
+        None => judged(plain, false),
         Some(table) => {
             // The static shape's two variants: the one that earns its place
             // with the lower held-out RMS.
-            let (a, b) = (judge(plain, false), judge(table, true));
+            let (a, b) = (judged(plain, false), judged(table, true));
             let note = format!(
                 "fit's static model with its stroke table: {}; the correction alone: {}",
                 describe(&b),

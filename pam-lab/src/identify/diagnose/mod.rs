@@ -208,7 +208,7 @@ fn inverse_tables(isometric: bool) -> crate::evaluate::simulate::InverseTables {
 /// after each; every ring is a reversal to [`hindsight_branches`]' deadband
 /// and a jump of the paper's model between its branches in the middle of
 /// a fill. The sweep split follows the fill and the vent.
-pub fn sweep_branches(labels: &[Option<pam_core::Branch>]) -> Vec<pam_core::Branch> {
+fn sweep_branches(labels: &[Option<pam_core::Branch>]) -> Vec<pam_core::Branch> {
     let mut last = pam_core::Branch::Contraction;
     labels
         .iter()
@@ -219,6 +219,24 @@ pub fn sweep_branches(labels: &[Option<pam_core::Branch>]) -> Vec<pam_core::Bran
             last
         })
         .collect()
+}
+
+/// The branches a record is simulated on: an isometric record's from the
+/// sweep split `labels` ([`sweep_branches`]), any other's with hindsight
+/// from the pressure and the contraction's jumps ([`hindsight_branches`]).
+fn record_branches(
+    samples: &[Sample],
+    labels: &[Option<pam_core::Branch>],
+    coeffs: &Coeffs,
+    tracker: TrackerConfig,
+    contraction_noise: f64,
+    isometric: bool,
+) -> Vec<pam_core::Branch> {
+    if isometric {
+        sweep_branches(labels)
+    } else {
+        hindsight_branches(samples, coeffs, tracker, contraction_noise)
+    }
 }
 
 /// Width of the held-out load groups of an isometric record, N
@@ -371,11 +389,14 @@ pub fn diagnose_with_progress(
         .collect();
     let regimes = regimes(samples, &coeffs, tracker);
     let noise = crate::evaluate::errors::noise_floor(&record.samples);
-    let branches = if isometric {
-        sweep_branches(&split.branch)
-    } else {
-        hindsight_branches(samples, &coeffs, tracker, noise.contraction)
-    };
+    let branches = record_branches(
+        samples,
+        &split.branch,
+        &coeffs,
+        tracker,
+        noise.contraction,
+        isometric,
+    );
     // An isometric record's residual is in pressure (its answer), an
     // isotonic one's in contraction.
     let noise_residual = if isometric {

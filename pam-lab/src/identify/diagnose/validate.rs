@@ -6,7 +6,7 @@
 use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
 
-use super::{denoise_pressure, hindsight_branches, tracker_config, DiagnoseConfig, DiagnoseReport};
+use super::{denoise_pressure, tracker_config, DiagnoseConfig, DiagnoseReport};
 use crate::evaluate::errors::rms_where;
 use crate::identify::fit::{detect_test, slack_mask, TestKind};
 use crate::identify::reference::ReferenceSurface;
@@ -75,11 +75,14 @@ pub fn validate(
         // beyond what the model reaches is predicted at `Pmax`, as the
         // static inverse clamps it to the stroke.
         let limit = params.points.max_pressure_mpa;
-        let branches = if test == TestKind::Isometric {
-            super::sweep_branches(&split.branch)
-        } else {
-            hindsight_branches(&samples, &coeffs, tracker, noise.contraction)
-        };
+        let branches = super::record_branches(
+            &samples,
+            &split.branch,
+            &coeffs,
+            tracker,
+            noise.contraction,
+            test == TestKind::Isometric,
+        );
         let p = crate::evaluate::simulate::pressure_to_reach(
             &coeffs,
             effects,
