@@ -57,7 +57,7 @@ impl core::error::Error for BootError {}
 /// validation of its effects and parameters; no allocation, no panic.
 ///
 /// `config.feedforward` is replaced by the one the blob's model asks for
-/// (the rules of [`model_from_blob`](crate::controller::model_from_blob));
+/// (the rules of [`model_from_blob`]);
 /// `initial_load_n` is called once, after the blob passed, with its
 /// coefficients (a board reads its load cell here and falls back to the
 /// calibrated range on a failed read).
@@ -116,7 +116,7 @@ pub(crate) fn decode(blob: &[u8]) -> Result<(Coeffs, Effects), ConfigError> {
 }
 
 /// The feedforward that runs a model with `effects`, from the configured
-/// one (the rules of [`model_from_blob`](crate::controller::model_from_blob)).
+/// one (the rules of [`model_from_blob`]).
 pub(crate) fn feedforward_for(effects: &Effects, configured: Feedforward) -> Feedforward {
     let memory_only = Effects {
         memory: effects.memory,
@@ -140,6 +140,67 @@ pub(crate) fn feedforward_for(effects: &Effects, configured: Feedforward) -> Fee
     }
 }
 
+/// The coefficients of a blob (version 1 or 2, [`pam_core::blob`]) and the
+/// feedforward that runs its model, from the configured one:
+///
+/// * a model with effects turns [`Feedforward::Hysteresis`] (and a
+///   hand-set [`Feedforward::HysteresisMemory`] or
+///   [`Feedforward::HysteresisEffects`]) into the feedforward that inverts
+///   the blob's model with all of them: `HysteresisMemory` with the blob's
+///   memory shape and merge span when the memory is its only effect,
+///   `HysteresisEffects` with the blob's effects otherwise (pam-core's
+///   [`ModelInverse`](pam_core::feedforward::ModelInverse) either way);
+/// * a model without effects keeps the configured feedforward (a hand-set
+///   memory or effects feedforward included);
+/// * the comparison modes [`Feedforward::Constraint`] and
+///   [`Feedforward::Off`] stay as configured.
+///
+/// The effects are validated here (what `decode_model` checks). The same
+/// decoding and rules as [`boot`], without building the controller.
+///
+/// ```
+/// use firmware::boot::model_from_blob;
+/// use firmware::controller::Feedforward;
+/// use pam_core::effects::{Creep, Effects};
+///
+/// let effects = Effects {
+///     creep: Some(Creep { gain: 0.3, time_constant_s: 2.0 }),
+///     ..Effects::NONE
+/// };
+/// let blob = pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects);
+/// let (_, ff) = model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
+/// assert_eq!(ff, Feedforward::HysteresisEffects(effects));
+/// // The paper's model alone from a version-1 blob.
+/// let plain = pam_core::blob::encode(&pam_core::Params::DEFAULT);
+/// let (_, ff) = model_from_blob(&plain, Feedforward::Hysteresis).unwrap();
+/// assert_eq!(ff, Feedforward::Hysteresis);
+/// ```
+pub fn model_from_blob(
+    blob: &[u8],
+    feedforward: Feedforward,
+) -> Result<(Coeffs, Feedforward), ConfigError> {
+    let (coeffs, effects) = decode(blob)?;
+    Ok((coeffs, feedforward_for(&effects, feedforward)))
+}
+
+impl Controller {
+    /// A controller from a coefficient blob in pam-core's format
+    /// ([`pam_core::blob`]: magic, version, length, CRC-32, then the
+    /// parameters and effects are validated), with the feedforward the
+    /// blob's model asks for ([`model_from_blob`]). A blob that fails any
+    /// check, or whose model this controller cannot run, is refused.
+    /// [`boot`] with a fixed initial load.
+    pub fn from_blob(
+        blob: &[u8],
+        config: ControllerConfig,
+        initial_load_n: f32,
+    ) -> Result<Controller, ConfigError> {
+        boot(blob, config, |_| initial_load_n)
+            .map(|b| b.controller)
+            .map_err(ConfigError::from)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -160,8 +221,7 @@ mod tests {
             pam_core::blob::encode_v2(&Params::DEFAULT, &with_memory).to_vec(),
         ] {
             let b = boot(&blob, ControllerConfig::DEFAULT, |_| 200.0).unwrap();
-            let (coeffs, ff) =
-                crate::controller::model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
+            let (coeffs, ff) = model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
             assert_eq!(b.controller.coeffs().params(), coeffs.params());
             assert_eq!(b.controller.config().feedforward, ff);
             assert_eq!(b.initial_load_n, 200.0);

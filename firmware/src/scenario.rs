@@ -336,7 +336,7 @@ mod tests {
     fn a_v2_blob_with_memory_runs_the_memory_feedforward_and_passes() {
         let effects = MEMORY_BLOB_EFFECTS;
         let b = pam_core::blob::encode_v2(&Params::DEFAULT, &effects);
-        let (_, ff) = crate::controller::model_from_blob(&b, Feedforward::Hysteresis).unwrap();
+        let (_, ff) = crate::boot::model_from_blob(&b, Feedforward::Hysteresis).unwrap();
         assert_eq!(ff, Feedforward::HysteresisMemory(effects.memory.unwrap()));
         let r = run(&b, Feedforward::Hysteresis, |_, _| {}).unwrap();
         let plain = run(&blob(), Feedforward::Hysteresis, |_, _| {}).unwrap();
@@ -352,7 +352,7 @@ mod tests {
     fn a_v2_blob_with_every_effect_runs_their_inverse_and_passes() {
         let effects = EFFECTS_BLOB_EFFECTS;
         let b = pam_core::blob::encode_v2(&Params::DEFAULT, &effects);
-        let (_, ff) = crate::controller::model_from_blob(&b, Feedforward::Hysteresis).unwrap();
+        let (_, ff) = crate::boot::model_from_blob(&b, Feedforward::Hysteresis).unwrap();
         assert_eq!(ff, Feedforward::HysteresisEffects(effects));
         let r = run(&b, Feedforward::Hysteresis, |_, _| {}).unwrap();
         let plain = run(&blob(), Feedforward::Hysteresis, |_, _| {}).unwrap();

@@ -209,7 +209,7 @@ pub enum Feedforward {
     /// by width and rate, the memory's minor loop or the branch. With
     /// [`Effects::NONE`] it is [`Feedforward::Hysteresis`]; with the memory
     /// alone, [`Feedforward::HysteresisMemory`]. What a blob with effects
-    /// gives ([`model_from_blob`](super::model_from_blob)).
+    /// gives ([`model_from_blob`](crate::boot::model_from_blob)).
     HysteresisEffects(Effects),
 }
 

@@ -102,48 +102,6 @@ fn table_build_units(feedforward: &Feedforward) -> u16 {
     }
 }
 
-/// The coefficients of a blob (version 1 or 2, [`pam_core::blob`]) and the
-/// feedforward that runs its model, from the configured one:
-///
-/// * a model with effects turns [`Feedforward::Hysteresis`] (and a
-///   hand-set [`Feedforward::HysteresisMemory`] or
-///   [`Feedforward::HysteresisEffects`]) into the feedforward that inverts
-///   the blob's model with all of them: `HysteresisMemory` with the blob's
-///   memory shape and merge span when the memory is its only effect,
-///   `HysteresisEffects` with the blob's effects otherwise (pam-core's
-///   [`ModelInverse`](pam_core::feedforward::ModelInverse) either way);
-/// * a model without effects keeps the configured feedforward (a hand-set
-///   memory or effects feedforward included);
-/// * the comparison modes [`Feedforward::Constraint`] and
-///   [`Feedforward::Off`] stay as configured.
-///
-/// The effects are validated here (what `decode_model` checks). The same
-/// decoding and rules as [`crate::boot::boot`], without building the controller.
-///
-/// ```
-/// use firmware::controller::{model_from_blob, Feedforward};
-/// use pam_core::effects::{Creep, Effects};
-///
-/// let effects = Effects {
-///     creep: Some(Creep { gain: 0.3, time_constant_s: 2.0 }),
-///     ..Effects::NONE
-/// };
-/// let blob = pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects);
-/// let (_, ff) = model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
-/// assert_eq!(ff, Feedforward::HysteresisEffects(effects));
-/// // The paper's model alone from a version-1 blob.
-/// let plain = pam_core::blob::encode(&pam_core::Params::DEFAULT);
-/// let (_, ff) = model_from_blob(&plain, Feedforward::Hysteresis).unwrap();
-/// assert_eq!(ff, Feedforward::Hysteresis);
-/// ```
-pub fn model_from_blob(
-    blob: &[u8],
-    feedforward: Feedforward,
-) -> Result<(Coeffs, Feedforward), ConfigError> {
-    let (coeffs, effects) = crate::boot::decode(blob)?;
-    Ok((coeffs, crate::boot::feedforward_for(&effects, feedforward)))
-}
-
 /// What one step did; the firmware logs `new_fault` and `recovered`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -230,22 +188,6 @@ impl Controller {
             good_run: 0,
             period: 0,
         })
-    }
-
-    /// A controller from a coefficient blob in pam-core's format
-    /// ([`pam_core::blob`]: magic, version, length, CRC-32, then the
-    /// parameters and effects are validated), with the feedforward the
-    /// blob's model asks for ([`model_from_blob`]). A blob that fails any
-    /// check, or whose model this controller cannot run, is refused.
-    /// [`crate::boot::boot`] with a fixed initial load.
-    pub fn from_blob(
-        blob: &[u8],
-        config: ControllerConfig,
-        initial_load_n: f32,
-    ) -> Result<Controller, ConfigError> {
-        crate::boot::boot(blob, config, |_| initial_load_n)
-            .map(|b| b.controller)
-            .map_err(ConfigError::from)
     }
 
     /// The coefficients.

@@ -489,10 +489,10 @@ fn effects_are_validated_and_each_runs_from_a_blob() {
     ];
     for e in each {
         let blob = pam_core::blob::encode_v2(&Params::DEFAULT, &e);
-        let (_, ff) = super::model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
+        let (_, ff) = crate::boot::model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
         assert_eq!(ff, Feedforward::HysteresisEffects(e));
         // The comparison modes stay as configured.
-        let (_, off) = super::model_from_blob(&blob, Feedforward::Off).unwrap();
+        let (_, off) = crate::boot::model_from_blob(&blob, Feedforward::Off).unwrap();
         assert_eq!(off, Feedforward::Off);
         let mut cfg = synthetic();
         cfg.feedforward = Feedforward::Hysteresis;
