@@ -1,10 +1,14 @@
 //! Least-squares plumbing shared by the fits: one adapter from a residual
-//! function to the `levenberg-marquardt` crate ([`minimize`]), and the
-//! forward-difference Jacobian, its columns shared between two threads
-//! (the machines this runs on have at least two cores).
+//! function to the `levenberg-marquardt` crate ([`minimize`]), with
+//! optional bounds on the parameters, limits on its iterations and first
+//! step, and a choice of what a point where the model breaks means, and the
+//! finite-difference
+//! Jacobian, its columns shared between two threads (the machines this
+//! runs on have at least two cores).
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use std::cell::{Cell, RefCell};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A least-squares problem as the fits state it: `m` residuals of a
@@ -15,12 +19,23 @@ pub struct Residuals<'a> {
     pub m: usize,
     /// Writes the residuals at a parameter vector into its `m`-slice.
     pub residuals: &'a (dyn Fn(&[f64], &mut [f64]) + Sync),
-    /// The forward-difference step of parameter `j` at value `v`.
+    /// The forward-difference step of parameter `j` at value `v` (taken
+    /// backwards where a forward step would pass the parameter's upper
+    /// bound, or, with [`NonFinite::Edge`], leave the valid points).
     pub step: &'a (dyn Fn(usize, f64) -> f64 + Sync),
     /// Hears every evaluation: its count and cost `½·Σr²`.
     pub on_evaluation: &'a (dyn Fn(usize, f64) + Sync),
     /// What a non-finite residual means.
     pub non_finite: NonFinite,
+    /// Bounds `(lo, hi)` on each parameter (infinite for none), or `None`
+    /// when no parameter has any. The start and every trial point are
+    /// projected onto them (each parameter clamped), so that the point
+    /// found lies within them; a parameter with `lo == hi` is held there
+    /// (its Jacobian column is zero and not simulated), and one on a bound
+    /// whose descent direction points out of its range is held for the
+    /// iteration (the bound is active: solved free, the other parameters'
+    /// step would count on a move of it that the projection takes back).
+    pub bounds: Option<&'a [(f64, f64)]>,
 }
 
 /// What a non-finite residual (a point where the model breaks) means.
@@ -28,24 +43,92 @@ pub struct Residuals<'a> {
 pub enum NonFinite {
     /// A bad point: the residual is 10⁶ and the optimiser moves on.
     Penalise,
-    /// No point: the optimiser's step there fails (the crate shrinks it).
+    /// No point: a trial step there ends the minimisation (the crate's
+    /// `User("residuals")`: the point returned is then that trial point,
+    /// the cost the last accepted one's), and a Jacobian column there fails
+    /// it (`User("jacobian")`, at the last accepted point).
     Refuse,
+    /// The edge of the valid points: a trial step past it is a bad point
+    /// to the optimiser (its residuals 10⁶: the crate shrinks the step, and
+    /// never accepts it from a valid point), a parameter whose forward step
+    /// leaves the valid points is differenced backwards, and one that can
+    /// move neither way is held for the iteration (its Jacobian column
+    /// zero).
+    Edge,
 }
 
 impl Residuals<'_> {
-    /// The residuals at `theta`; `false` when they are not usable.
+    /// The residuals at `theta`; `false` when they are not all finite
+    /// (with [`NonFinite::Penalise`] and [`NonFinite::Edge`] the non-finite
+    /// ones are then 10⁶).
     fn eval(&self, theta: &[f64], out: &mut [f64]) -> bool {
         (self.residuals)(theta, out);
-        match self.non_finite {
-            NonFinite::Penalise => {
-                for v in out.iter_mut() {
-                    if !v.is_finite() {
-                        *v = 1e6;
-                    }
+        let mut finite = true;
+        for v in out.iter_mut() {
+            if !v.is_finite() {
+                finite = false;
+                if self.non_finite != NonFinite::Refuse {
+                    *v = 1e6;
                 }
-                true
             }
-            NonFinite::Refuse => out.iter().all(|v| v.is_finite()),
+        }
+        finite
+    }
+
+    /// Whether the residuals are usable when not all finite.
+    fn usable(&self, finite: bool) -> bool {
+        finite || self.non_finite != NonFinite::Refuse
+    }
+
+    /// The bounds of parameter `j`.
+    fn bound(&self, j: usize) -> (f64, f64) {
+        self.bounds
+            .and_then(|b| b.get(j).copied())
+            .unwrap_or((f64::NEG_INFINITY, f64::INFINITY))
+    }
+
+    /// `theta` clamped onto the bounds.
+    fn project(&self, theta: &mut [f64]) {
+        if self.bounds.is_none() {
+            return;
+        }
+        for (j, v) in theta.iter_mut().enumerate() {
+            let (lo, hi) = self.bound(j);
+            if *v < lo {
+                *v = lo;
+            } else if *v > hi {
+                *v = hi;
+            }
+        }
+    }
+}
+
+/// How long [`minimize`] may run, and how far its first step may go.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// The crate's patience: its limit on evaluations at trial points,
+    /// this times the parameter count plus one. Zero runs nothing (the
+    /// start is the point found).
+    pub patience: usize,
+    /// Most Jacobians computed (the iterations: each is followed by the
+    /// trial steps to one accepted step), or `None` for no limit.
+    pub iterations: Option<usize>,
+    /// The first trust region's radius, as a multiple of the norm of the
+    /// parameters scaled by their Jacobian columns (the crate's
+    /// `stepbound`), or `None` for the crate's 100. A refinement of a
+    /// fitted point on an ill-conditioned Jacobian wants a few: its first
+    /// Gauss–Newton step is otherwise tried whole, wild, and shrunk back
+    /// only after failing.
+    pub first_step: Option<f64>,
+}
+
+impl From<usize> for Limits {
+    /// The given patience, iterations and first step the crate's.
+    fn from(patience: usize) -> Self {
+        Limits {
+            patience,
+            iterations: None,
+            first_step: None,
         }
     }
 }
@@ -59,7 +142,8 @@ pub struct Minimum {
     pub cost: f64,
     /// Residual evaluations spent.
     pub evaluations: usize,
-    /// The optimiser's termination reason.
+    /// The optimiser's termination reason (`LostPatience` too when the
+    /// [`Limits`]'s iterations ran out).
     pub termination: TerminationReason,
 }
 
@@ -77,6 +161,14 @@ struct Adapter<'a, 'b> {
     theta: DVector<f64>,
     problem: &'b Residuals<'a>,
     evaluations: AtomicUsize,
+    /// The point of the last Jacobian (the crate's current point), and the
+    /// parameters held there (see [`Residuals::bounds`], [`NonFinite::Edge`]).
+    last: RefCell<(Vec<f64>, Vec<bool>)>,
+    /// Jacobians computed, the most allowed, and whether one more was
+    /// refused for that.
+    jacobians: Cell<usize>,
+    max_jacobians: Option<usize>,
+    out_of_iterations: Cell<bool>,
 }
 
 impl LeastSquaresProblem<f64, Dyn, Dyn> for Adapter<'_, '_> {
@@ -86,6 +178,13 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Adapter<'_, '_> {
 
     fn set_params(&mut self, x: &DVector<f64>) {
         self.theta.copy_from(x);
+        let (at, held) = &*self.last.borrow();
+        for (j, v) in self.theta.iter_mut().enumerate() {
+            if let (true, Some(&a)) = (held.get(j).copied().unwrap_or(false), at.get(j)) {
+                *v = a;
+            }
+        }
+        self.problem.project(self.theta.as_mut_slice());
     }
 
     fn params(&self) -> DVector<f64> {
@@ -94,85 +193,171 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Adapter<'_, '_> {
 
     fn residuals(&self) -> Option<DVector<f64>> {
         let mut r = DVector::zeros(self.problem.m);
-        let usable = self.problem.eval(self.theta.as_slice(), r.as_mut_slice());
+        let finite = self.problem.eval(self.theta.as_slice(), r.as_mut_slice());
         let count = 1 + self.evaluations.fetch_add(1, Ordering::Relaxed);
         (self.problem.on_evaluation)(count, 0.5 * r.norm_squared());
-        usable.then_some(r)
+        self.problem.usable(finite).then_some(r)
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let count = self.jacobians.get() + 1;
+        if self.max_jacobians.is_some_and(|max| count > max) {
+            self.out_of_iterations.set(true);
+            return None;
+        }
+        self.jacobians.set(count);
         let theta: Vec<f64> = self.theta.iter().copied().collect();
-        let steps: Vec<f64> = theta
-            .iter()
-            .enumerate()
-            .map(|(j, &v)| (self.problem.step)(j, v))
-            .collect();
-        let jac = forward_difference_jacobian(&theta, &steps, self.problem.m, &|t, out| {
-            self.problem.eval(t, out);
-        });
+        let (jac, held) = jacobian(self.problem, &theta);
+        *self.last.borrow_mut() = (theta, held);
         jac.iter().all(|v| v.is_finite()).then_some(jac)
     }
 }
 
-/// Levenberg–Marquardt from `theta0` with the given patience (the crate's
-/// limit on evaluations, a multiple of the parameter count).
-pub fn minimize(problem: &Residuals<'_>, theta0: &[f64], patience: usize) -> Minimum {
+/// Levenberg–Marquardt from `theta0` (projected onto the bounds first)
+/// within `limits` (a patience alone, or [`Limits`]).
+pub fn minimize(problem: &Residuals<'_>, theta0: &[f64], limits: impl Into<Limits>) -> Minimum {
+    let limits = limits.into();
+    let mut start = theta0.to_vec();
+    problem.project(&mut start);
     let adapter = Adapter {
-        theta: DVector::from_column_slice(theta0),
+        theta: DVector::from_column_slice(&start),
         problem,
         evaluations: AtomicUsize::new(0),
+        last: RefCell::new((Vec::new(), Vec::new())),
+        jacobians: Cell::new(0),
+        max_jacobians: limits.iterations,
+        out_of_iterations: Cell::new(false),
     };
-    let (adapter, report) = LevenbergMarquardt::new()
-        .with_patience(patience)
-        .minimize(adapter);
+    if limits.patience == 0 || limits.iterations == Some(0) {
+        let r = adapter.residuals();
+        return Minimum {
+            theta: start,
+            cost: r.map_or(f64::NAN, |r| 0.5 * r.norm_squared()),
+            evaluations: adapter.evaluations.load(Ordering::Relaxed),
+            termination: TerminationReason::LostPatience,
+        };
+    }
+    let mut lm = LevenbergMarquardt::new().with_patience(limits.patience);
+    if let Some(first_step) = limits.first_step {
+        lm = lm.with_stepbound(first_step);
+    }
+    let (adapter, report) = lm.minimize(adapter);
     Minimum {
         theta: adapter.theta.iter().copied().collect(),
         cost: report.objective_function,
         evaluations: adapter.evaluations.load(Ordering::Relaxed),
-        termination: report.termination,
+        termination: if adapter.out_of_iterations.get() {
+            TerminationReason::LostPatience
+        } else {
+            report.termination
+        },
     }
 }
 
-/// Forward-difference Jacobian of `residuals` (which writes `m` residuals
-/// for a parameter vector) at `theta`, with step `steps[j]` for parameter
-/// `j`: one residual evaluation per parameter plus the base point.
-pub fn forward_difference_jacobian(
-    theta: &[f64],
-    steps: &[f64],
-    m: usize,
-    residuals: &(dyn Fn(&[f64], &mut [f64]) + Sync),
-) -> DMatrix<f64> {
-    let n = theta.len();
-    let mut base = vec![0.0; m];
-    residuals(theta, &mut base);
+/// The Jacobian of `problem` at `theta` by finite differences (one residual
+/// evaluation per parameter not held, plus the base point), and the
+/// parameters held there, whose columns are zero: those a bound fixes, those
+/// on an active bound, and with [`NonFinite::Edge`] those that can move
+/// neither way (see [`Residuals::bounds`]).
+fn jacobian(problem: &Residuals<'_>, theta: &[f64]) -> (DMatrix<f64>, Vec<bool>) {
+    let (m, n) = (problem.m, theta.len());
     let mut jac = DMatrix::zeros(m, n);
+    let mut held = vec![false; n];
+    if m == 0 || n == 0 {
+        return (jac, held);
+    }
+    let mut base = vec![0.0; m];
+    problem.eval(theta, &mut base);
     let (left, right): (Vec<_>, Vec<_>) = jac
         .as_mut_slice()
         .chunks_mut(m)
+        .zip(held.iter_mut())
         .enumerate()
         .partition(|(j, _)| j % 2 == 0);
-    let work = |list: Vec<(usize, &mut [f64])>| {
+    let work = |list: Vec<(usize, (&mut [f64], &mut bool))>| {
         let mut t = theta.to_vec();
-        for (j, col) in list {
-            let step = steps.get(j).copied().unwrap_or(1e-7);
-            t[j] = theta[j] + step;
-            residuals(&t, col);
-            t[j] = theta[j];
-            for (c, b) in col.iter_mut().zip(&base) {
-                *c = (*c - b) / step;
-            }
+        for (j, (col, held)) in list {
+            *held = !difference(problem, theta, &base, j, &mut t, col);
         }
     };
     std::thread::scope(|s| {
         s.spawn(|| work(right));
         work(left);
     });
-    jac
+    for (j, held) in held.iter_mut().enumerate() {
+        let (lo, hi) = problem.bound(j);
+        let descent = -jac
+            .column(j)
+            .iter()
+            .zip(&base)
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
+        if !*held && ((theta[j] <= lo && descent < 0.0) || (theta[j] >= hi && descent > 0.0)) {
+            *held = true;
+            jac.column_mut(j).fill(0.0);
+        }
+    }
+    (jac, held)
+}
+
+/// Column `j` of the Jacobian at `theta`, whose residuals are `base`, into
+/// `col` (`t` a copy of `theta`, returned as it was); `false` when the
+/// parameter is held (the column zero): fixed by its bounds, or, with
+/// [`NonFinite::Edge`], no step either way keeps the residuals finite.
+fn difference(
+    problem: &Residuals<'_>,
+    theta: &[f64],
+    base: &[f64],
+    j: usize,
+    t: &mut [f64],
+    col: &mut [f64],
+) -> bool {
+    let v = theta[j];
+    let (lo, hi) = problem.bound(j);
+    if lo >= hi {
+        col.fill(0.0);
+        return false;
+    }
+    let h = (problem.step)(j, v);
+    let forward = if v + h > hi { -h } else { h };
+    let edge = problem.non_finite == NonFinite::Edge;
+    for (k, step) in [forward, -forward].into_iter().enumerate() {
+        if k > 0 && (!edge || v + step < lo || v + step > hi) {
+            break;
+        }
+        t[j] = v + step;
+        let finite = problem.eval(t, col);
+        t[j] = v;
+        if finite || !edge {
+            for (c, b) in col.iter_mut().zip(base) {
+                *c = (*c - b) / step;
+            }
+            return true;
+        }
+    }
+    col.fill(0.0);
+    false
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn problem<'a>(
+        m: usize,
+        residuals: &'a (dyn Fn(&[f64], &mut [f64]) + Sync),
+        non_finite: NonFinite,
+        bounds: Option<&'a [(f64, f64)]>,
+    ) -> Residuals<'a> {
+        Residuals {
+            m,
+            residuals,
+            step: &|_, _| 1e-7,
+            on_evaluation: &|_, _| {},
+            non_finite,
+            bounds,
+        }
+    }
 
     #[test]
     fn jacobian_of_a_known_function() {
@@ -182,7 +367,8 @@ mod tests {
             out[1] = t[0] * t[1];
             out[2] = t[1].sin();
         };
-        let j = forward_difference_jacobian(&[2.0, 0.5], &[1e-7, 1e-7], 3, &f);
+        let (j, held) = jacobian(&problem(3, &f, NonFinite::Penalise, None), &[2.0, 0.5]);
+        assert_eq!(held, [false, false]);
         let want = [[4.0, 0.0], [0.5, 2.0], [0.0, 0.5f64.cos()]];
         for r in 0..3 {
             for c in 0..2 {
@@ -193,5 +379,87 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn at_the_edge_a_column_is_differenced_backwards_or_held() {
+        // Valid only at θ0 = 1 and θ1 ≤ 1: at (1, 1) θ1 is differenced
+        // backwards, and θ0, which can move neither way, is held.
+        let f = |t: &[f64], out: &mut [f64]| {
+            let valid = t[0] == 1.0 && t[1] <= 1.0;
+            out[0] = if valid { t[0] + 2.0 * t[1] } else { f64::NAN };
+            out[1] = if valid { t[1] } else { f64::NAN };
+        };
+        let (j, held) = jacobian(&problem(2, &f, NonFinite::Edge, None), &[1.0, 1.0]);
+        assert_eq!(held, [true, false]);
+        assert_eq!((j[(0, 0)], j[(1, 0)]), (0.0, 0.0));
+        assert!((j[(0, 1)] - 2.0).abs() < 1e-6 && (j[(1, 1)] - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_bound_clamps_holds_and_stops_the_step_it_meets() {
+        // r = (θ0 - 3, θ1 - 5, θ2 - 7) with θ0 ≤ 2 and θ1 fixed at 1: the
+        // minimum within the bounds is (2, 1, 7).
+        let f = |t: &[f64], out: &mut [f64]| {
+            out[0] = t[0] - 3.0;
+            out[1] = t[1] - 5.0;
+            out[2] = t[2] - 7.0;
+        };
+        let bounds = [
+            (f64::NEG_INFINITY, 2.0),
+            (1.0, 1.0),
+            (f64::NEG_INFINITY, f64::INFINITY),
+        ];
+        let p = problem(3, &f, NonFinite::Penalise, Some(&bounds));
+        let min = minimize(&p, &[0.0, 1.0, 0.0], 10);
+        assert!(min.usable(), "{:?}", min.termination);
+        assert_eq!(min.theta[..2], [2.0, 1.0]);
+        assert!((min.theta[2] - 7.0).abs() < 1e-6, "{:?}", min.theta);
+        // On its bound with the descent pointing out, θ0 is held.
+        let (_, held) = jacobian(&p, &[2.0, 1.0, 0.0]);
+        assert_eq!(held, [true, true, false]);
+    }
+
+    #[test]
+    fn the_iterations_limit_stops_after_that_many_jacobians() {
+        // Rosenbrock's valley: far more than two steps from (-1.2, 1).
+        let f = |t: &[f64], out: &mut [f64]| {
+            out[0] = 10.0 * (t[1] - t[0] * t[0]);
+            out[1] = 1.0 - t[0];
+        };
+        let p = problem(2, &f, NonFinite::Penalise, None);
+        let start = [-1.2, 1.0];
+        let limits = Limits {
+            patience: 100,
+            iterations: Some(2),
+            first_step: None,
+        };
+        let two = minimize(&p, &start, limits);
+        assert_eq!(two.termination, TerminationReason::LostPatience);
+        assert!(two.usable());
+        let full = minimize(&p, &start, 100);
+        assert!(full.cost < two.cost, "{} vs {}", full.cost, two.cost);
+        let none = minimize(
+            &p,
+            &start,
+            Limits {
+                iterations: Some(0),
+                ..limits
+            },
+        );
+        assert_eq!(none.theta, start);
+    }
+
+    #[test]
+    fn an_edge_step_is_shrunk_not_taken() {
+        // r = θ - 3, valid only below 1: from 0 the point found is valid
+        // and close to the edge.
+        let f = |t: &[f64], out: &mut [f64]| {
+            out[0] = if t[0] < 1.0 { t[0] - 3.0 } else { f64::NAN };
+        };
+        let p = problem(1, &f, NonFinite::Edge, None);
+        let min = minimize(&p, &[0.0], 20);
+        assert!(min.theta[0] < 1.0 && min.theta[0] > 0.5, "{:?}", min.theta);
+        assert!(min.cost.is_finite() && min.cost < 0.5 * 9.0);
     }
 }

@@ -390,6 +390,7 @@ fn fit_effect_on(
                 step: &|_, v| 1e-3 * (1.0 + v.abs()),
                 on_evaluation: &|_, _| {},
                 non_finite: lsq::NonFinite::Refuse,
+                bounds: None,
             },
             &start,
             cfg.patience,

@@ -348,6 +348,7 @@ pub fn fit_with_progress(
             step: &|j, v| 1e-7 * v.abs().max(param_scale(j, &fixed)),
             on_evaluation: &on_evaluation,
             non_finite: lsq::NonFinite::Penalise,
+            bounds: None,
         },
         &theta0,
         cfg.patience,
