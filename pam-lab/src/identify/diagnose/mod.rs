@@ -102,7 +102,7 @@ pub struct DiagnoseConfig {
     pub max_effects: usize,
     /// Iteration budget of each candidate's optimiser (LM patience).
     pub patience: usize,
-    /// Damped Gauss–Newton iterations of the joint base refit
+    /// Levenberg–Marquardt iterations of the joint base refit
     /// ([`BASE_REFIT_FIELDS`]); 0 keeps `fit::fit`'s base.
     pub refit_iterations: usize,
 }
