@@ -193,6 +193,37 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
         stdout.contains("isometric test, the ") && stdout.contains(" slack ones left out"),
         "{stdout}"
     );
+
+    // fit's count of training samples leaves the slack ones out, as its fit
+    // does: no more than simulate's samples under load of the same record.
+    let (ok, sim_stdout, stderr) = pam_lab(&[
+        "simulate",
+        fit_dir.join("model.json").to_str().unwrap(),
+        out.join("train.csv").to_str().unwrap(),
+        "-o",
+        dir.path().join("sim-train.csv").to_str().unwrap(),
+    ]);
+    assert!(ok, "{sim_stdout}{stderr}");
+    let number_after = |text: &str, key: &str| -> usize {
+        let at = text
+            .find(key)
+            .unwrap_or_else(|| panic!("{key:?} in {text}"))
+            + key.len();
+        text[at..]
+            .split(|c: char| !c.is_ascii_digit())
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let under_load = number_after(&sim_stdout, "isometric test, the ");
+    let fit_stdout = std::fs::read_to_string(fit_dir.join("model.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&fit_stdout).unwrap();
+    let training = json["fit"]["training_samples"].as_u64().unwrap() as usize;
+    assert!(
+        training > 0 && training <= under_load,
+        "{training} training samples, {under_load} under load"
+    );
 }
 
 /// diagnose on the same records: an isometric record is diagnosed, not

@@ -85,6 +85,10 @@ pub struct DiagnoseReport {
     pub base_params: Params,
     /// The final model's base parameters (refitted jointly with its effects).
     pub final_params: Params,
+    /// How the model written differs from the one judged, when it does
+    /// (the static shape's table variant is refitted on the whole record).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub final_refit: Option<String>,
     /// The final model's effects.
     pub effects: Effects,
     /// The effects the base model carries (none: the static shape is a
@@ -270,6 +274,10 @@ pub fn summary(r: &DiagnoseReport) -> String {
         r.above_noise_after,
         pct(r.share_removed())
     ));
+    if let Some(note) = &r.final_refit {
+        s.push_str(note);
+        s.push('\n');
+    }
     if r.pmax_at_ceiling {
         s.push_str(&format!(
             "Pmax held at the record's top: refitted, it went to its ceiling ({:.2}x the top), so the record does not say where the loop closes\n",
