@@ -488,37 +488,45 @@ pub fn diagnose_with_progress(
         ..
     } = chosen;
 
-    // The table variant is fit's static model on the training part; what
-    // diagnose writes is the same model fitted on the whole record, as
-    // `pam-lab fit` makes it: the held-out part chose the model, and the
-    // model written should not leave a third of the record unused (Festo
-    // 25 cm, test 10: 16.3 kPa from the training part, 12.5 kPa from the
-    // whole record).
-    let table_only = setup.stroke_table.as_ref().is_some_and(|(p, shape)| {
-        *p == model_params
-            && current
-                == Effects {
-                    shape: Some(*shape),
-                    ..setup.base_effects
-                }
+    // The table variant is fit's static model on the training part, its
+    // base refitted on the simulated training part as every path's is
+    // (`paths::candidates_on`). What diagnose writes is the same model made
+    // on the whole record: fit's static model fitted on all of it, its base
+    // refitted on all of it. The held-out part chose the model; the model
+    // written does not leave a third of the record unused.
+    let table_only = setup.stroke_table.as_ref().is_some_and(|(_, shape)| {
+        current
+            == Effects {
+                shape: Some(*shape),
+                ..setup.base_effects
+            }
     });
     let whole = if table_only {
         progress("fitting the static shape chosen on the whole record");
-        whole_record_static_model(record, &fit_cfg)
+        whole_record_static_model(record, &fit_cfg).map(|(params, coeffs, shape, samples)| {
+            let effects = Effects {
+                shape: Some(shape),
+                ..current
+            };
+            let all = unexcluded(&setup);
+            let train_idx = std::mem::replace(&mut setup.train_idx, all);
+            let (params, coeffs) =
+                refit_base(&setup, params, coeffs, effects, cfg.refit_iterations);
+            setup.train_idx = train_idx;
+            (params, coeffs, effects, samples)
+        })
     } else {
         None
     };
     let (model_params, model_coeffs, current, final_refit) = match whole {
-        Some((params, coeffs, shape, samples)) => (
+        Some((params, coeffs, effects, samples)) => (
             params,
             coeffs,
-            Effects {
-                shape: Some(shape),
-                ..current
-            },
+            effects,
             Some(format!(
                 "the model written is fit's static model fitted on the whole record \
-                 ({samples} samples): the held-out figures are its training part's"
+                 ({samples} samples), its base refitted there: the held-out figures \
+                 are its training part's"
             )),
         ),
         None => (model_params, model_coeffs, current, None),
@@ -592,6 +600,14 @@ pub fn diagnose_with_progress(
         heldout: setup.heldout,
         regimes: setup.regimes,
     })
+}
+
+/// The samples of `setup` a model is fitted on when nothing is held out:
+/// every one but the excluded (slack) ones.
+fn unexcluded(setup: &Setup<'_>) -> Vec<usize> {
+    (0..setup.samples.len())
+        .filter(|&i| !setup.excluded[i])
+        .collect()
 }
 
 /// fit's static model (the paper's model and the stroke table) on the whole
