@@ -35,13 +35,16 @@ pub mod exercise;
 pub mod hal;
 pub mod wiring;
 
-// The simulated muscle and the self-test scenario: only in the self-test
-// images (feature `sim`, enabled by `selftest` and `qemu`) and in tests; the
+// The simulated muscle, the self-test scenario and the simulated sensors and
+// PWM channels (also host-sim's): only in the self-test images (feature
+// `sim`, enabled by `selftest` and `qemu`), host benches and tests; the
 // board controller does not contain them.
 #[cfg(any(test, feature = "sim"))]
 pub mod plant;
 #[cfg(any(test, feature = "sim"))]
 pub mod scenario;
+#[cfg(any(test, feature = "sim"))]
+pub mod sim_io;
 
 #[cfg(all(target_os = "none", feature = "chip"))]
 pub mod board;

@@ -1,7 +1,7 @@
 //! A simulated muscle, `no_std`, for the QEMU image and host tests: chamber
 //! pressure fed by an inlet/exhaust valve pair, and a contraction with
-//! hysteresis and a first-order lag. Plus simulated sensors and PWM channels
-//! that implement the [`crate::hal`] traits.
+//! hysteresis and a first-order lag. Plus [`SimBus`], the signals between
+//! it and the simulated sensors and PWM channels of [`crate::sim_io`].
 //!
 //! # The muscle
 //! * Chamber: `dp/dt = k_fill·e(d_in)·(p_supply − p) − k_vent·e(d_ex)·p`,
@@ -24,14 +24,10 @@
 //! [`crate::scenario`]), so the feedforward is not exact.
 
 use core::cell::Cell;
-use core::sync::atomic::{AtomicU16, Ordering};
 
 use crate::controller::SensorId;
-use crate::hal::{
-    ContractionSensor, Counts, ErrorType, LoadCell, PressureCalibration, PressureSensor,
-    SensorErrorKind,
-};
-use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+use crate::hal::{Counts, PressureCalibration, SensorErrorKind};
+use crate::sim_io::{SensorSource, PWM_MAX_DUTY};
 use pam_core::{clamp, Branch, Coeffs, Effects, LoadModel, Simulator, TrackerConfig};
 
 /// Physical constants of the simulated muscle and valves.
@@ -183,7 +179,11 @@ impl Noise {
 
 /// The signals between a simulated muscle and the controller: what the
 /// sensors return and what the PWM channels were set to. Interior mutability
-/// lets the sensor and valve objects share it by `&`.
+/// lets the sensor and valve objects share it by `&`: it is the
+/// [`SensorSource`] of [`crate::sim_io`]'s sensors (`SimPressure { source:
+/// &bus, .. }`, `SimContraction(&bus)`, `SimLoad(&bus)`), and its duty cells
+/// are the registers of its [`crate::sim_io::SimPwm`]s
+/// (`SimPwm::new(&bus.inlet_duty)`).
 #[derive(Debug)]
 pub struct SimBus {
     /// Code the pressure sensor returns.
@@ -194,9 +194,9 @@ pub struct SimBus {
     pub load_n: Cell<f32>,
     /// A sensor that fails its reads with this kind, if any.
     pub failing: Cell<Option<(SensorId, SensorErrorKind)>>,
-    /// Inlet PWM duty, of [`SimPwm::MAX_DUTY`].
+    /// Inlet PWM duty, of [`PWM_MAX_DUTY`].
     pub inlet_duty: Cell<u16>,
-    /// Exhaust PWM duty, of [`SimPwm::MAX_DUTY`].
+    /// Exhaust PWM duty, of [`PWM_MAX_DUTY`].
     pub exhaust_duty: Cell<u16>,
 }
 
@@ -232,7 +232,7 @@ impl SimBus {
 
     /// Inlet and exhaust duty fractions.
     pub fn duties(&self) -> (f32, f32) {
-        let max = f32::from(SimPwm::MAX_DUTY);
+        let max = f32::from(PWM_MAX_DUTY);
         (
             f32::from(self.inlet_duty.get()) / max,
             f32::from(self.exhaust_duty.get()) / max,
@@ -253,111 +253,19 @@ impl Default for SimBus {
     }
 }
 
-/// Simulated pressure sensor on a [`SimBus`].
-#[derive(Debug)]
-pub struct SimPressure<'a> {
-    /// The bus it reads.
-    pub bus: &'a SimBus,
-    /// Its calibration.
-    pub calibration: PressureCalibration,
-}
-
-impl ErrorType for SimPressure<'_> {
-    type Error = SensorErrorKind;
-}
-
-impl PressureSensor for SimPressure<'_> {
-    fn read_counts(&mut self) -> Result<Counts, SensorErrorKind> {
-        self.bus.fails(SensorId::Pressure)?;
-        Ok(self.bus.pressure_counts.get())
+/// The values published last, or the injected failure of the sensor read.
+impl SensorSource for SimBus {
+    fn pressure_counts(&self) -> Result<Counts, SensorErrorKind> {
+        self.fails(SensorId::Pressure)?;
+        Ok(self.pressure_counts.get())
     }
-    fn calibration(&self) -> &PressureCalibration {
-        &self.calibration
+    fn contraction(&self) -> Result<f32, SensorErrorKind> {
+        self.fails(SensorId::Contraction)?;
+        Ok(self.contraction.get())
     }
-}
-
-/// Simulated contraction sensor on a [`SimBus`].
-#[derive(Debug)]
-pub struct SimContraction<'a>(pub &'a SimBus);
-
-impl ErrorType for SimContraction<'_> {
-    type Error = SensorErrorKind;
-}
-
-impl ContractionSensor for SimContraction<'_> {
-    fn read_contraction(&mut self) -> Result<f32, SensorErrorKind> {
-        self.0.fails(SensorId::Contraction)?;
-        Ok(self.0.contraction.get())
-    }
-}
-
-/// Simulated load cell on a [`SimBus`].
-#[derive(Debug)]
-pub struct SimLoad<'a>(pub &'a SimBus);
-
-impl ErrorType for SimLoad<'_> {
-    type Error = SensorErrorKind;
-}
-
-impl LoadCell for SimLoad<'_> {
-    fn read_load_n(&mut self) -> Result<f32, SensorErrorKind> {
-        self.0.fails(SensorId::Load)?;
-        Ok(self.0.load_n.get())
-    }
-}
-
-/// A simulated PWM channel writing its duty into a cell of a [`SimBus`].
-#[derive(Debug)]
-pub struct SimPwm<'a>(pub &'a Cell<u16>);
-
-impl SimPwm<'_> {
-    /// Full-scale duty (a timer with auto-reload 999).
-    pub const MAX_DUTY: u16 = 1000;
-}
-
-impl PwmErrorType for SimPwm<'_> {
-    type Error = core::convert::Infallible;
-}
-
-impl SetDutyCycle for SimPwm<'_> {
-    fn max_duty_cycle(&self) -> u16 {
-        SimPwm::MAX_DUTY
-    }
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
-        // A timer's compare register saturates at the reload value.
-        self.0.set(if duty > SimPwm::MAX_DUTY {
-            SimPwm::MAX_DUTY
-        } else {
-            duty
-        });
-        Ok(())
-    }
-}
-
-/// A simulated PWM channel whose duty is a `static` atomic, so a panic
-/// handler can reach it (the self-test's stand-in for the board's valve
-/// pins, which [`crate::board`]'s handlers drive directly).
-#[derive(Debug)]
-pub struct StaticPwm(pub &'static AtomicU16);
-
-impl PwmErrorType for StaticPwm {
-    type Error = core::convert::Infallible;
-}
-
-impl SetDutyCycle for StaticPwm {
-    fn max_duty_cycle(&self) -> u16 {
-        SimPwm::MAX_DUTY
-    }
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Self::Error> {
-        self.0.store(
-            if duty > SimPwm::MAX_DUTY {
-                SimPwm::MAX_DUTY
-            } else {
-                duty
-            },
-            Ordering::Relaxed,
-        );
-        Ok(())
+    fn load_n(&self) -> Result<f32, SensorErrorKind> {
+        self.fails(SensorId::Load)?;
+        Ok(self.load_n.get())
     }
 }
 

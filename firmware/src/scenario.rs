@@ -22,9 +22,9 @@ use crate::controller::{
     ConfigError, Controller, ControllerConfig, Feedforward, Io, SensorId, Step,
 };
 use crate::hal::{PressureCalibration, SensorErrorKind, ValvePair, ValvePairConfig};
-use crate::plant::{
-    MusclePlant, Noise, PlantConfig, SimBus, SimContraction, SimLoad, SimPressure, SimPwm,
-};
+use crate::plant::{MusclePlant, Noise, PlantConfig, SimBus};
+use crate::sim_io::{SimContraction, SimLoad, SimPressure, SimPwm, PWM_MAX_DUTY};
+use core::cell::Cell;
 use pam_core::{Coeffs, Params};
 
 pub use crate::exercise::{triangle, HIGH, LOW, PERIOD_S};
@@ -86,8 +86,12 @@ impl Report {
 }
 
 /// The hardware of the images: the simulated bus's sensors and valve pair.
-pub type SimIo<'a> =
-    Io<SimPressure<'a>, SimContraction<'a>, SimLoad<'a>, ValvePair<SimPwm<'a>, SimPwm<'a>>>;
+pub type SimIo<'a> = Io<
+    SimPressure<&'a SimBus>,
+    SimContraction<&'a SimBus>,
+    SimLoad<&'a SimBus>,
+    ValvePair<SimPwm<&'a Cell<u16>>, SimPwm<&'a Cell<u16>>>,
+>;
 
 /// One control period of the images: [`Controller::step`] on [`SimIo`].
 ///
@@ -194,13 +198,13 @@ pub fn run_on(
     let bus = SimBus::new();
     let calibration = PressureCalibration::ADC12_0_1MPA;
     let valve = ValvePair::new(
-        SimPwm(&bus.inlet_duty),
-        SimPwm(&bus.exhaust_duty),
+        SimPwm::new(&bus.inlet_duty),
+        SimPwm::new(&bus.exhaust_duty),
         ValvePairConfig::DEFAULT,
     )?;
     let mut io = Io {
         pressure: SimPressure {
-            bus: &bus,
+            source: &bus,
             calibration,
         },
         contraction: SimContraction(&bus),
@@ -239,8 +243,7 @@ pub fn run_on(
         }
         if let Some(f) = step.new_fault {
             if k == fault_from {
-                let exhaust =
-                    (bus.inlet_duty.get(), bus.exhaust_duty.get()) == (0, SimPwm::MAX_DUTY);
+                let exhaust = (bus.inlet_duty.get(), bus.exhaust_duty.get()) == (0, PWM_MAX_DUTY);
                 report.fault_caught = exhaust
                     && f == crate::controller::Fault::Read {
                         sensor: SensorId::Pressure,

@@ -2,13 +2,10 @@
 //! the mock HALs, one control period at a time, with a trace of everything
 //! and the metrics the scenario tests assert on.
 
-use crate::hal_mocks::{
-    valve_opening, SharedRig, SimContraction, SimLoad, SimPressure, SimPwm, ValveKind,
-};
+use crate::hal_mocks::{rig_io, valve_opening, RigIo, SharedRig, ValveKind};
 use crate::rig::Rig;
 use crate::scenarios::Scenario;
-use firmware::controller::{Controller, ControllerConfig, Fault, Feedforward, Io, ValveCommand};
-use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
+use firmware::controller::{Controller, ControllerConfig, Fault, Feedforward, ValveCommand};
 use pam_core::effects::NonLocalMemory;
 use pam_core::{Branch, Coeffs, Params};
 use std::cell::RefCell;
@@ -228,15 +225,12 @@ pub fn run_controller(
     warmup_s: f64,
 ) -> Run {
     let rig: SharedRig = Rc::new(RefCell::new(rig));
-    let inlet = SimPwm::new();
-    let exhaust = SimPwm::new();
-    let mut io = Io {
-        pressure: SimPressure::new(rig.clone(), PressureCalibration::ADC12_0_1MPA),
-        contraction: SimContraction::new(rig.clone()),
-        load: SimLoad::new(rig.clone()),
-        valve: ValvePair::new(inlet.clone(), exhaust.clone(), ValvePairConfig::DEFAULT)
-            .expect("valve config"),
-    };
+    let RigIo {
+        mut io,
+        inlet,
+        exhaust,
+        ..
+    } = rig_io(&rig).expect("valve config");
     let dt = f64::from(ctl.config().dt_s);
     let n = (scenario.duration_s / dt).round() as usize;
     let mut trace = Vec::with_capacity(n);

@@ -19,12 +19,13 @@
 //! tests. The tests (`tests/faults.rs`) and the main job's table use
 //! [`run_case`] and [`boot`], so the table's numbers are the tested ones.
 
-use crate::hal_mocks::SimPwm;
+use crate::hal_mocks::RigPwm;
 use crate::harness::{Harness, LoopState};
 use firmware::controller::{Check, ConfigError, ControllerConfig, Fault, SensorId, ValveCommand};
 use firmware::hal::{
     PressureCalibration, SafeState, SensorErrorKind, Valve, ValvePair, ValvePairConfig,
 };
+use firmware::sim_io::PWM_MAX_DUTY;
 use pam_core::Params;
 
 /// A fault the bench injects.
@@ -400,11 +401,11 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
         let t = k as f64 * dt;
         let mut reference = reference_at(t) as f32;
         match case {
-            Case::PressureReadError => {
-                h.io.pressure
-                    .error
-                    .set(active.then_some(SensorErrorKind::Timeout))
-            }
+            Case::PressureReadError => h
+                .sensors
+                .pressure
+                .error
+                .set(active.then_some(SensorErrorKind::Timeout)),
             Case::PressureStuck | Case::PressureOutOfRange | Case::PressureSpike => {
                 use crate::sensors::PressureFault;
                 let code = match case {
@@ -418,13 +419,13 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
                     PressureFault::None
                 };
             }
-            Case::ContractionReadError => {
-                h.io.contraction
-                    .error
-                    .set(active.then_some(SensorErrorKind::Bus))
-            }
-            Case::ContractionNan => h.io.contraction.value.set(active.then_some(f32::NAN)),
-            Case::LoadNan => h.io.load.value.set(active.then_some(f32::NAN)),
+            Case::ContractionReadError => h
+                .sensors
+                .contraction
+                .error
+                .set(active.then_some(SensorErrorKind::Bus)),
+            Case::ContractionNan => h.sensors.contraction.value.set(active.then_some(f32::NAN)),
+            Case::LoadNan => h.sensors.load.value.set(active.then_some(f32::NAN)),
             Case::ValveWriteError => h.inlet.fail.set(active),
             Case::SupplyLoss => {
                 h.rig
@@ -436,7 +437,7 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
                     .borrow_mut()
                     .set_load_n(if active { BEYOND_LOAD_N } else { LOAD_N });
             }
-            Case::LoadStuck => h.io.load.value.set(active.then_some(stuck_load)),
+            Case::LoadStuck => h.sensors.load.value.set(active.then_some(stuck_load)),
             Case::SetpointNan => {
                 if active {
                     reference = f32::NAN;
@@ -444,7 +445,10 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
             }
             Case::ContractionDecoupled => {
                 let dither = (k % 3) as f32 * 1e-4;
-                h.io.contraction.value.set(active.then_some(0.10 + dither));
+                h.sensors
+                    .contraction
+                    .value
+                    .set(active.then_some(0.10 + dither));
             }
             Case::ContractionOffset => {
                 h.rig.borrow_mut().contraction_sensor.offset = if active { 0.05 } else { 0.0 };
@@ -469,7 +473,7 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
             }
             Case::IntermittentNan => {
                 let nan = active && (k - injected_at).is_multiple_of(60);
-                h.io.contraction.value.set(nan.then_some(f32::NAN));
+                h.sensors.contraction.value.set(nan.then_some(f32::NAN));
             }
             Case::Overrun => h.ctl.record_overrun(active),
         }
@@ -481,9 +485,9 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
         let step = h.period(reference);
 
         // What the firmware was given, and the rule that makes it detectable.
-        let code = h.io.pressure.last_counts.get();
+        let code = h.sensors.pressure.last.get();
         counts.push(code);
-        loads.push(h.io.load.last.get());
+        loads.push(h.sensors.load.last.get());
         let pressure_mpa = code.and_then(|c| cal.to_mpa(firmware::hal::Counts(c)).ok());
         let need = usize::from(s.stuck_samples) + 2;
         let bad = match case {
@@ -502,21 +506,21 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
                     w.iter().all(|l| l.is_some() && *l == w[0])
                 }
             }
-            Case::ContractionReadError => h.io.contraction.last.get().is_none(),
-            Case::ContractionNan => h.io.contraction.last.get().is_some_and(f32::is_nan),
-            Case::LoadNan => h.io.load.last.get().is_some_and(f32::is_nan),
+            Case::ContractionReadError => h.sensors.contraction.last.get().is_none(),
+            Case::ContractionNan => h.sensors.contraction.last.get().is_some_and(f32::is_nan),
+            Case::LoadNan => h.sensors.load.last.get().is_some_and(f32::is_nan),
             Case::ValveWriteError => h.inlet.fail.get(),
             Case::SupplyLoss => pressure_mpa.is_some_and(|p| {
                 supply.observe(flows.last().copied().unwrap_or(0.0), p, &cfg.safety)
             }),
-            Case::LoadBeyondMargin => {
-                h.io.load
-                    .last
-                    .get()
-                    .is_some_and(|l| l > Params::DEFAULT.max_load_n + s.load_margin_n)
-            }
+            Case::LoadBeyondMargin => h
+                .sensors
+                .load
+                .last
+                .get()
+                .is_some_and(|l| l > Params::DEFAULT.max_load_n + s.load_margin_n),
             Case::SetpointNan => active,
-            Case::IntermittentNan => h.io.contraction.last.get().is_some_and(f32::is_nan),
+            Case::IntermittentNan => h.sensors.contraction.last.get().is_some_and(f32::is_nan),
             Case::Overrun => active && k + 1 - injected_at >= usize::from(s.overrun_limit),
             _ => false,
         };
@@ -548,7 +552,7 @@ pub fn run_case(case: Case, seed: u64) -> FaultRun {
             }
         }
         was_faulted = fault.is_some();
-        let exhaust_open = h.exhaust.duty.get() == SimPwm::MAX_DUTY;
+        let exhaust_open = h.exhaust.duty.get() == PWM_MAX_DUTY;
         let safe = exhaust_open && (case == Case::ValveWriteError || h.inlet.duty.get() == 0);
         // After a panic or a stall nothing of the old controller reports:
         // the panic handler, then the rebooted latched controller, hold the
@@ -640,7 +644,7 @@ impl ReplaySupply {
 pub struct BootOutcome {
     /// The controller's verdict on the blob.
     pub result: Result<(), ConfigError>,
-    /// Inlet and exhaust duty after boot, counts of [`SimPwm::MAX_DUTY`].
+    /// Inlet and exhaust duty after boot, counts of [`PWM_MAX_DUTY`].
     pub duties: (u16, u16),
 }
 
@@ -651,9 +655,9 @@ pub struct BootOutcome {
 /// # Panics
 /// If the valve configuration is refused (a bench set-up error).
 pub fn boot(blob: &[u8]) -> BootOutcome {
-    let (inlet, exhaust) = (SimPwm::new(), SimPwm::new());
+    let (inlet, exhaust) = (RigPwm::default(), RigPwm::default());
     // Both channels start as a board's timers would after a fill command.
-    inlet.duty.set(SimPwm::MAX_DUTY);
+    inlet.duty.set(PWM_MAX_DUTY);
     let mut valve = ValvePair::new(inlet.clone(), exhaust.clone(), ValvePairConfig::DEFAULT)
         .expect("valve config");
     let cfg = ControllerConfig::DEFAULT;
@@ -743,7 +747,7 @@ pub fn table(runs: &[FaultRun], boot: &BootOutcome) -> String {
         "| corrupt coefficient blob (1 bit) | boot: {verdict} | magic, version, length, CRC-32, parameter validation | at boot | at boot, before decoding (inlet {}, exhaust {}/{}); no step runs | none: refused, the image stops |\n",
         boot.duties.0,
         boot.duties.1,
-        SimPwm::MAX_DUTY
+        PWM_MAX_DUTY
     ));
     out
 }

@@ -1,232 +1,179 @@
-//! The firmware's HAL traits implemented on the simulated rig.
+//! The rig behind the firmware's simulated sensors and PWM channels.
 //!
-//! Each mock holds a shared handle to the [`Rig`]; the sensors convert the
-//! rig's true state through the rig's noisy sensor models, and the PWM
-//! channels record their duty, which [`valve_opening`] turns into the valve
-//! paths' openings for the next plant interval. Faults are injectable on
-//! every mock.
+//! The mocks themselves are the firmware's ([`firmware::sim_io`]: one set
+//! for every bench). Here is what they read and drive on this rig:
+//! [`RigSensors`], the [`SensorSource`] that converts the rig's true state
+//! through its noisy sensor models at each read, with the bench's injection
+//! hooks on every sensor; [`RigPwm`], a channel whose duty and fail switch
+//! the bench shares; and [`valve_opening`], which turns the channels' duties
+//! into the valve paths' openings for the next plant interval.
 
 use crate::pneumatics::ValveOpening;
 use crate::rig::Rig;
+use firmware::controller::Io;
 use firmware::hal::{
-    ContractionSensor, Counts, ErrorType, LoadCell, PressureCalibration, PressureSensor,
-    SensorErrorKind,
+    Counts, HalConfigError, PressureCalibration, SensorErrorKind, ValvePair, ValvePairConfig,
 };
+use firmware::sim_io::{SensorSource, SimContraction, SimLoad, SimPressure, SimPwm};
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-/// The rig, shared between the mocks and the bench loop.
+/// The rig, shared between the sensors and the bench loop.
 pub type SharedRig = Rc<RefCell<Rig>>;
 
-/// A sensor failure to inject, shared with the bench.
-pub type InjectedError = Rc<Cell<Option<SensorErrorKind>>>;
+/// The rig's sensors, shared between the firmware's simulated sensors and
+/// the bench (which injects through them).
+pub type SharedSensors = Rc<RigSensors>;
 
-/// A reading to inject in place of the rig's (NaN, a frozen value), shared
-/// with the bench.
-pub type InjectedValue = Rc<Cell<Option<f32>>>;
+/// A PWM channel driving one of the rig's valve coils: its duty (counts of
+/// [`firmware::sim_io::PWM_MAX_DUTY`]) and its fail switch (writes fail
+/// while it is `true`), both shared with the bench.
+pub type RigPwm = SimPwm<Rc<Cell<u16>>, Rc<Cell<bool>>>;
 
-/// The last value a mock returned to the firmware (`None` after an error),
-/// for the bench's records.
-pub type Tap<T> = Rc<Cell<Option<T>>>;
-
-/// The pressure transducer through the firmware's [`PressureSensor`] trait.
+/// What the bench injects into one sensor's reads, and what the sensor last
+/// returned.
 #[derive(Debug)]
-pub struct SimPressure {
-    /// The rig.
-    pub rig: SharedRig,
-    /// Calibration the firmware applies (the rig's transducer differs from
-    /// it by its zero offset and slope tolerance, as real parts do).
-    pub calibration: PressureCalibration,
+pub struct Injection<T: Copy> {
     /// When set, every read fails with this kind.
-    pub error: InjectedError,
-    /// The code of the last read. Stuck, open-wire, short and drift faults
-    /// are injected on the rig's transducer (`Rig::pressure_sensor.fault`).
-    pub last_counts: Tap<u16>,
+    pub error: Cell<Option<SensorErrorKind>>,
+    /// When set (and no error is), reads return this instead of the rig's
+    /// value. Stuck, open-wire, short and drift faults of the pressure
+    /// transducer are injected on the rig (`Rig::pressure_sensor.fault`).
+    pub value: Cell<Option<T>>,
+    /// The value of the last read (`None` after an error), for the bench's
+    /// records.
+    pub last: Cell<Option<T>>,
 }
 
-impl ErrorType for SimPressure {
-    type Error = SensorErrorKind;
-}
-
-impl PressureSensor for SimPressure {
-    fn read_counts(&mut self) -> Result<Counts, SensorErrorKind> {
-        self.last_counts.set(None);
-        if let Some(e) = self.error.get() {
-            return Err(e);
-        }
-        let mut rig = self.rig.borrow_mut();
-        let p = rig.chamber.pressure_mpa();
-        let code = rig.pressure_sensor.read_code(p);
-        self.last_counts.set(Some(code));
-        Ok(Counts(code))
-    }
-
-    fn calibration(&self) -> &PressureCalibration {
-        &self.calibration
-    }
-}
-
-/// The contraction sensor through the firmware's [`ContractionSensor`] trait.
-#[derive(Debug)]
-pub struct SimContraction {
-    /// The rig.
-    pub rig: SharedRig,
-    /// When set, every read fails with this kind.
-    pub error: InjectedError,
-    /// When set (and no error is), reads return this instead of the rig's value.
-    pub value: InjectedValue,
-    /// The last value read.
-    pub last: Tap<f32>,
-}
-
-impl ErrorType for SimContraction {
-    type Error = SensorErrorKind;
-}
-
-impl ContractionSensor for SimContraction {
-    fn read_contraction(&mut self) -> Result<f32, SensorErrorKind> {
-        self.last.set(None);
-        if let Some(e) = self.error.get() {
-            return Err(e);
-        }
-        let mut rig = self.rig.borrow_mut();
-        let x = rig.muscle.contraction();
-        // The rig's sensor is read even when overridden, so its noise
-        // sequence does not depend on the injection.
-        let measured = rig.contraction_sensor.read(x) as f32;
-        let v = self.value.get().unwrap_or(measured);
-        self.last.set(Some(v));
-        Ok(v)
-    }
-}
-
-/// The load cell through the firmware's [`LoadCell`] trait.
-#[derive(Debug)]
-pub struct SimLoad {
-    /// The rig.
-    pub rig: SharedRig,
-    /// When set, every read fails with this kind.
-    pub error: InjectedError,
-    /// When set (and no error is), reads return this instead of the rig's value.
-    pub value: InjectedValue,
-    /// The last value read.
-    pub last: Tap<f32>,
-}
-
-impl ErrorType for SimLoad {
-    type Error = SensorErrorKind;
-}
-
-impl LoadCell for SimLoad {
-    fn read_load_n(&mut self) -> Result<f32, SensorErrorKind> {
-        self.last.set(None);
-        if let Some(e) = self.error.get() {
-            return Err(e);
-        }
-        let mut rig = self.rig.borrow_mut();
-        let l = rig.true_state().load_n;
-        let measured = rig.load_cell.read_n(l) as f32;
-        let v = self.value.get().unwrap_or(measured);
-        self.last.set(Some(v));
-        Ok(v)
-    }
-}
-
-impl SimPressure {
-    /// The rig's transducer read through `calibration`, nothing injected.
-    pub fn new(rig: SharedRig, calibration: PressureCalibration) -> SimPressure {
-        SimPressure {
-            rig,
-            calibration,
-            error: InjectedError::default(),
-            last_counts: Tap::default(),
-        }
-    }
-}
-
-impl SimContraction {
-    /// The rig's contraction sensor, nothing injected.
-    pub fn new(rig: SharedRig) -> SimContraction {
-        SimContraction {
-            rig,
-            error: InjectedError::default(),
-            value: InjectedValue::default(),
-            last: Tap::default(),
-        }
-    }
-}
-
-impl SimLoad {
-    /// The rig's load cell, nothing injected.
-    pub fn new(rig: SharedRig) -> SimLoad {
-        SimLoad {
-            rig,
-            error: InjectedError::default(),
-            value: InjectedValue::default(),
-            last: Tap::default(),
-        }
-    }
-}
-
-/// Error of a [`SimPwm`] write (injected).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SimPwmError;
-
-impl embedded_hal::pwm::Error for SimPwmError {
-    fn kind(&self) -> embedded_hal::pwm::ErrorKind {
-        embedded_hal::pwm::ErrorKind::Other
-    }
-}
-
-/// A PWM channel driving a valve coil: records its duty.
-#[derive(Clone, Debug)]
-pub struct SimPwm {
-    /// Duty now, counts of [`SimPwm::MAX_DUTY`].
-    pub duty: Rc<Cell<u16>>,
-    /// When true, writes fail.
-    pub fail: Rc<Cell<bool>>,
-}
-
-impl SimPwm {
-    /// Full-scale duty (a 16-bit timer at 25 Hz PWM has more; 1000 is enough).
-    pub const MAX_DUTY: u16 = 1000;
-
-    /// A channel at zero duty.
-    pub fn new() -> SimPwm {
-        SimPwm {
-            duty: Rc::new(Cell::new(0)),
-            fail: Rc::new(Cell::new(false)),
-        }
-    }
-
-    /// Duty as a fraction of full scale.
-    pub fn fraction(&self) -> f64 {
-        f64::from(self.duty.get()) / f64::from(Self::MAX_DUTY)
-    }
-}
-
-impl Default for SimPwm {
+impl<T: Copy> Default for Injection<T> {
     fn default() -> Self {
-        SimPwm::new()
-    }
-}
-
-impl embedded_hal::pwm::ErrorType for SimPwm {
-    type Error = SimPwmError;
-}
-
-impl embedded_hal::pwm::SetDutyCycle for SimPwm {
-    fn max_duty_cycle(&self) -> u16 {
-        Self::MAX_DUTY
-    }
-
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), SimPwmError> {
-        if self.fail.get() {
-            return Err(SimPwmError);
+        Injection {
+            error: Cell::new(None),
+            value: Cell::new(None),
+            last: Cell::new(None),
         }
-        self.duty.set(duty.min(Self::MAX_DUTY));
-        Ok(())
     }
+}
+
+impl<T: Copy> Injection<T> {
+    /// One read: the injected error, else the injected value or the
+    /// sensor's `measured` reading. The sensor is read even when its value
+    /// is overridden, so its noise sequence does not depend on the
+    /// injection.
+    fn read(&self, measured: impl FnOnce() -> T) -> Result<T, SensorErrorKind> {
+        self.last.set(None);
+        if let Some(e) = self.error.get() {
+            return Err(e);
+        }
+        let measured = measured();
+        let v = self.value.get().unwrap_or(measured);
+        self.last.set(Some(v));
+        Ok(v)
+    }
+}
+
+/// The rig's pressure transducer, contraction sensor and load cell, read
+/// through their noisy models when the firmware reads them, with an
+/// [`Injection`] on each.
+#[derive(Debug)]
+pub struct RigSensors {
+    /// The rig.
+    pub rig: SharedRig,
+    /// The pressure transducer's code.
+    pub pressure: Injection<u16>,
+    /// The contraction sensor.
+    pub contraction: Injection<f32>,
+    /// The load cell.
+    pub load: Injection<f32>,
+}
+
+impl RigSensors {
+    /// The sensors of `rig`, nothing injected.
+    pub fn new(rig: SharedRig) -> SharedSensors {
+        Rc::new(RigSensors {
+            rig,
+            pressure: Injection::default(),
+            contraction: Injection::default(),
+            load: Injection::default(),
+        })
+    }
+}
+
+impl SensorSource for RigSensors {
+    fn pressure_counts(&self) -> Result<Counts, SensorErrorKind> {
+        self.pressure
+            .read(|| {
+                let mut rig = self.rig.borrow_mut();
+                let p = rig.chamber.pressure_mpa();
+                rig.pressure_sensor.read_code(p)
+            })
+            .map(Counts)
+    }
+
+    fn contraction(&self) -> Result<f32, SensorErrorKind> {
+        self.contraction.read(|| {
+            let mut rig = self.rig.borrow_mut();
+            let x = rig.muscle.contraction();
+            rig.contraction_sensor.read(x) as f32
+        })
+    }
+
+    fn load_n(&self) -> Result<f32, SensorErrorKind> {
+        self.load.read(|| {
+            let mut rig = self.rig.borrow_mut();
+            let l = rig.true_state().load_n;
+            rig.load_cell.read_n(l) as f32
+        })
+    }
+}
+
+/// The simulated valve pair.
+pub type PairValve = ValvePair<RigPwm, RigPwm>;
+/// The hardware the controller drives: the firmware's simulated sensors on
+/// [`RigSensors`] and a valve pair of [`RigPwm`]s.
+pub type SimIo = Io<
+    SimPressure<SharedSensors>,
+    SimContraction<SharedSensors>,
+    SimLoad<SharedSensors>,
+    PairValve,
+>;
+
+/// The controller's hardware on a rig, with the bench's handles to it.
+#[derive(Debug)]
+pub struct RigIo {
+    /// What the controller reads and drives.
+    pub io: SimIo,
+    /// The rig's sensors (injection and the last reads).
+    pub sensors: SharedSensors,
+    /// The inlet channel.
+    pub inlet: RigPwm,
+    /// The exhaust channel.
+    pub exhaust: RigPwm,
+}
+
+/// The firmware's hardware on `rig`: its sensors, the transducer read
+/// through the ADC12 0–1 MPa calibration (the rig's transducer differs from
+/// it by its zero offset and slope tolerance, as real parts do), and an
+/// on/off valve pair with the default configuration, both channels at zero
+/// duty; nothing injected.
+pub fn rig_io(rig: &SharedRig) -> Result<RigIo, HalConfigError> {
+    let sensors = RigSensors::new(rig.clone());
+    let (inlet, exhaust) = (RigPwm::default(), RigPwm::default());
+    let io = Io {
+        pressure: SimPressure {
+            source: sensors.clone(),
+            calibration: PressureCalibration::ADC12_0_1MPA,
+        },
+        contraction: SimContraction(sensors.clone()),
+        load: SimLoad(sensors.clone()),
+        valve: ValvePair::new(inlet.clone(), exhaust.clone(), ValvePairConfig::DEFAULT)?,
+    };
+    Ok(RigIo {
+        io,
+        sensors,
+        inlet,
+        exhaust,
+    })
 }
 
 /// How the simulated valves turn PWM duty into flow.
@@ -280,51 +227,57 @@ pub fn valve_opening(kind: ValveKind, first: f64, second: f64) -> ValveOpening {
 mod tests {
     use super::*;
     use embedded_hal::pwm::SetDutyCycle;
+    use firmware::hal::{ContractionSensor, LoadCell, PressureSensor};
+    use firmware::sim_io::SimPwmError;
 
     #[test]
     fn sensors_read_the_rig_through_the_firmware_traits() {
         let rig: SharedRig = Rc::new(RefCell::new(Rig::reference(200.0, 4)));
         rig.borrow_mut().advance_regulated(0.3, 3.0);
-        let err: InjectedError = Rc::new(Cell::new(None));
-        let mut p = SimPressure {
-            error: err.clone(),
-            ..SimPressure::new(rig.clone(), PressureCalibration::ADC12_0_1MPA)
-        };
+        let RigIo {
+            io:
+                Io {
+                    pressure: mut p,
+                    contraction: mut x,
+                    load: mut l,
+                    ..
+                },
+            sensors,
+            ..
+        } = rig_io(&rig).unwrap();
         let mpa = p.read_pressure_mpa().unwrap();
         // Offset +3 kPa, noise 0.8 kPa RMS.
         assert!((mpa - 0.303).abs() < 0.005, "{mpa}");
-        let mut x = SimContraction {
-            error: err.clone(),
-            ..SimContraction::new(rig.clone())
-        };
         let true_x = rig.borrow().muscle.contraction() as f32;
         assert!((x.read_contraction().unwrap() - true_x).abs() < 0.002);
-        let mut l = SimLoad {
-            error: err.clone(),
-            ..SimLoad::new(rig.clone())
-        };
         assert!((l.read_load_n().unwrap() - 200.0).abs() < 8.0);
-        assert!(p.last_counts.get().is_some() && l.last.get().is_some());
-        l.value.set(Some(f32::NAN));
+        assert!(sensors.pressure.last.get().is_some() && sensors.load.last.get().is_some());
+        sensors.load.value.set(Some(f32::NAN));
         assert!(l.read_load_n().unwrap().is_nan());
-        l.value.set(None);
-        err.set(Some(SensorErrorKind::Timeout));
+        sensors.load.value.set(None);
+        sensors.pressure.error.set(Some(SensorErrorKind::Timeout));
+        sensors
+            .contraction
+            .error
+            .set(Some(SensorErrorKind::Timeout));
         assert_eq!(p.read_pressure_mpa(), Err(SensorErrorKind::Timeout));
         assert_eq!(x.read_contraction(), Err(SensorErrorKind::Timeout));
+        assert_eq!(sensors.contraction.last.get(), None);
         // An open transducer line reads code 0: outside the valid window.
-        err.set(None);
+        sensors.pressure.error.set(None);
         rig.borrow_mut().pressure_sensor.fault = crate::sensors::PressureFault::OpenWire;
         assert_eq!(p.read_pressure_mpa(), Err(SensorErrorKind::InvalidCode));
     }
 
     #[test]
     fn pwm_records_duty_and_fails_on_demand() {
-        let mut pwm = SimPwm::new();
+        let mut pwm = RigPwm::default();
+        let bench = pwm.clone();
         pwm.set_duty_cycle_fraction(1, 4).unwrap();
-        assert_eq!(pwm.duty.get(), 250);
-        pwm.fail.set(true);
+        assert_eq!((bench.duty.get(), bench.fraction()), (250, 0.25));
+        bench.fail.set(true);
         assert_eq!(pwm.set_duty_cycle(10), Err(SimPwmError));
-        assert_eq!(pwm.duty.get(), 250);
+        assert_eq!(bench.duty.get(), 250);
     }
 
     #[test]

@@ -20,12 +20,13 @@
 //!   which resets into the latched boot above.
 
 use crate::hal_mocks::{
-    valve_opening, SharedRig, SimContraction, SimLoad, SimPressure, SimPwm, ValveKind,
+    rig_io, valve_opening, RigIo, RigPwm, SharedRig, SharedSensors, SimIo, ValveKind,
 };
 use crate::pneumatics::ValveOpening;
 use crate::rig::Rig;
-use firmware::controller::{Controller, ControllerConfig, Fault, Io, Step};
-use firmware::hal::{PressureCalibration, Valve, ValvePair, ValvePairConfig};
+use firmware::controller::{Controller, ControllerConfig, Fault, Step};
+use firmware::hal::Valve;
+use firmware::sim_io::PWM_MAX_DUTY;
 use pam_core::{Coeffs, Params};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -36,11 +37,6 @@ pub const WATCHDOG_PERIODS: usize = firmware::wiring::WATCHDOG_MS as usize;
 /// Periods from a watchdog reset to boot writing the safe state (clock
 /// start-up and `board::init`; an estimate, the board was not measured).
 pub const BOOT_PERIODS: usize = 5;
-
-/// The simulated valve pair.
-pub type PairValve = ValvePair<SimPwm, SimPwm>;
-/// The mocks the controller drives.
-pub type SimIo = Io<SimPressure, SimContraction, SimLoad, PairValve>;
 
 /// What the valve hardware does, whatever it is told.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -74,10 +70,12 @@ pub struct Harness {
     pub ctl: Controller,
     /// Its hardware.
     pub io: SimIo,
+    /// The rig's sensors (injection and the last reads).
+    pub sensors: SharedSensors,
     /// Inlet channel.
-    pub inlet: SimPwm,
+    pub inlet: RigPwm,
     /// Exhaust channel.
-    pub exhaust: SimPwm,
+    pub exhaust: RigPwm,
     /// Valve hardware faults.
     pub valves: ValveFaults,
     /// The control loop's state.
@@ -102,18 +100,17 @@ impl Harness {
         let rig: SharedRig = Rc::new(RefCell::new(Rig::reference(load_n, seed)));
         let coeffs = Coeffs::new(Params::DEFAULT).expect("default parameters");
         let ctl = Controller::new(coeffs, cfg, load_n as f32).expect("controller config");
-        let (inlet, exhaust) = (SimPwm::new(), SimPwm::new());
-        let io = Io {
-            pressure: SimPressure::new(rig.clone(), PressureCalibration::ADC12_0_1MPA),
-            contraction: SimContraction::new(rig.clone()),
-            load: SimLoad::new(rig.clone()),
-            valve: ValvePair::new(inlet.clone(), exhaust.clone(), ValvePairConfig::DEFAULT)
-                .expect("valve config"),
-        };
+        let RigIo {
+            io,
+            sensors,
+            inlet,
+            exhaust,
+        } = rig_io(&rig).expect("valve config");
         Harness {
             rig,
             ctl,
             io,
+            sensors,
             inlet,
             exhaust,
             valves: ValveFaults::default(),
@@ -129,14 +126,14 @@ impl Harness {
     /// The valves are in the configured safe state as commanded: inlet
     /// duty 0, exhaust duty full.
     pub fn valves_commanded_safe(&self) -> bool {
-        self.inlet.duty.get() == 0 && self.exhaust.duty.get() == SimPwm::MAX_DUTY
+        self.inlet.duty.get() == 0 && self.exhaust.duty.get() == PWM_MAX_DUTY
     }
 
     /// The board's panic handler: the exhaust-safe duties straight to both
     /// channels, then nothing more runs until the watchdog resets the chip.
     pub fn panic_handler(&mut self) {
         self.inlet.duty.set(0);
-        self.exhaust.duty.set(SimPwm::MAX_DUTY);
+        self.exhaust.duty.set(PWM_MAX_DUTY);
         self.state = LoopState::Stalled;
     }
 

@@ -9,9 +9,9 @@
 
 use firmware::controller::{Check, ConfigError, Fault};
 use firmware::hal::SafeState;
+use firmware::sim_io::PWM_MAX_DUTY;
 use firmware::ControllerConfig;
 use host_sim::faults::{boot, corrupt_blob, run_case, Case, FaultRun, RESET_AFTER_CLEAR};
-use host_sim::hal_mocks::SimPwm;
 use host_sim::harness::{survey, BOOT_PERIODS, WATCHDOG_PERIODS};
 
 /// The main job's default seed, so its table shows these runs.
@@ -291,7 +291,7 @@ fn corrupt_blob_is_refused_at_boot_with_valves_safe() {
             "CRC mismatch"
         )))
     );
-    assert_eq!(bad.duties, (0, SimPwm::MAX_DUTY));
+    assert_eq!(bad.duties, (0, PWM_MAX_DUTY));
     // Truncated and foreign blobs too.
     let blob = pam_core::blob::encode(&pam_core::Params::DEFAULT);
     for b in [&blob[..10], &[0u8; 68][..]] {
@@ -300,7 +300,7 @@ fn corrupt_blob_is_refused_at_boot_with_valves_safe() {
             matches!(o.result, Err(ConfigError::Coefficients(_))),
             "{o:?}"
         );
-        assert_eq!(o.duties, (0, SimPwm::MAX_DUTY));
+        assert_eq!(o.duties, (0, PWM_MAX_DUTY));
     }
 }
 

@@ -22,7 +22,9 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, Step};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
-use firmware::plant::{SimBus, SimContraction, SimLoad, SimPressure, SimPwm};
+use firmware::plant::SimBus;
+use firmware::scenario::SimIo;
+use firmware::sim_io::{SimContraction, SimLoad, SimPressure, SimPwm};
 use pam_core::effects::{
     ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
     ReversalStack,
@@ -80,8 +82,6 @@ type Gpi4 = GeneralizedPi<4>;
 type Gpi4Table = GpiTable<4, 6>;
 type Preisach16 = Preisach<16>;
 type Preisach16Table = PreisachTable<16, 6>;
-type SimIo<'a> =
-    Io<SimPressure<'a>, SimContraction<'a>, SimLoad<'a>, ValvePair<SimPwm<'a>, SimPwm<'a>>>;
 
 #[no_mangle]
 #[inline(never)]
@@ -485,15 +485,15 @@ fn main() -> ! {
     let bus = SimBus::new();
     let cal = PressureCalibration::ADC12_0_1MPA;
     let Ok(valve) = ValvePair::new(
-        SimPwm(&bus.inlet_duty),
-        SimPwm(&bus.exhaust_duty),
+        SimPwm::new(&bus.inlet_duty),
+        SimPwm::new(&bus.exhaust_duty),
         ValvePairConfig::DEFAULT,
     ) else {
         fail("valve refused");
     };
     let mut io = Io {
         pressure: SimPressure {
-            bus: &bus,
+            source: &bus,
             calibration: cal,
         },
         contraction: SimContraction(&bus),

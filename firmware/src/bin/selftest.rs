@@ -43,10 +43,11 @@ use firmware::controller::{ControllerConfig, Feedforward, Step};
 #[cfg(feature = "qemu")]
 use firmware::crash::Exception;
 use firmware::hal::{SafeState, Valve, ValvePair, ValvePairConfig};
-#[cfg(feature = "qemu")]
-use firmware::plant::StaticPwm;
-use firmware::plant::{SimBus, SimPwm};
+use firmware::plant::SimBus;
 use firmware::scenario::{self, Report};
+use firmware::sim_io::SimPwm;
+#[cfg(feature = "qemu")]
+use firmware::sim_io::PWM_MAX_DUTY;
 #[cfg(feature = "qemu")]
 use firmware::Controller;
 #[cfg(not(feature = "qemu"))]
@@ -134,10 +135,11 @@ fn report(name: &str, r: &Report) {
 fn fault_demo(mut ctl: Controller) -> ! {
     use firmware::controller::Io;
     use firmware::hal::PressureCalibration;
-    use firmware::plant::{MusclePlant, Noise, PlantConfig, SimContraction, SimLoad, SimPressure};
+    use firmware::plant::{MusclePlant, Noise, PlantConfig};
+    use firmware::sim_io::{SimContraction, SimLoad, SimPressure};
     let Ok(valve) = ValvePair::new(
-        StaticPwm(&INLET_DUTY),
-        StaticPwm(&EXHAUST_DUTY),
+        SimPwm::new(&INLET_DUTY),
+        SimPwm::new(&EXHAUST_DUTY),
         ValvePairConfig::DEFAULT,
     ) else {
         finish(false)
@@ -146,7 +148,7 @@ fn fault_demo(mut ctl: Controller) -> ! {
     let calibration = PressureCalibration::ADC12_0_1MPA;
     let mut io = Io {
         pressure: SimPressure {
-            bus: &bus,
+            source: &bus,
             calibration,
         },
         contraction: SimContraction(&bus),
@@ -159,7 +161,7 @@ fn fault_demo(mut ctl: Controller) -> ! {
     );
     let mut noise = Noise::new(7);
     let dt_s = ControllerConfig::DEFAULT.dt_s;
-    let max = f32::from(SimPwm::MAX_DUTY);
+    let max = f32::from(PWM_MAX_DUTY);
     for _ in 0..40 {
         bus.publish(
             &plant,
@@ -187,9 +189,9 @@ fn fault_demo(mut ctl: Controller) -> ! {
             None => "panic",
         },
         i,
-        SimPwm::MAX_DUTY,
+        PWM_MAX_DUTY,
         e,
-        SimPwm::MAX_DUTY,
+        PWM_MAX_DUTY,
         plant.pressure_mpa()
     );
     match PENDED {
@@ -225,8 +227,8 @@ fn main() -> ! {
     // before anything else, as a board's would be.
     let bus = SimBus::new();
     let mut valve = match ValvePair::new(
-        SimPwm(&bus.inlet_duty),
-        SimPwm(&bus.exhaust_duty),
+        SimPwm::new(&bus.inlet_duty),
+        SimPwm::new(&bus.exhaust_duty),
         ValvePairConfig::DEFAULT,
     ) {
         Ok(v) => v,
@@ -316,7 +318,7 @@ fn main() -> ! {
 #[cfg(feature = "qemu")]
 fn valves_safe_now() {
     INLET_DUTY.store(0, Ordering::Relaxed);
-    EXHAUST_DUTY.store(SimPwm::MAX_DUTY, Ordering::Relaxed);
+    EXHAUST_DUTY.store(PWM_MAX_DUTY, Ordering::Relaxed);
 }
 
 /// Under QEMU: valves safe first, then report and end the emulator (with
@@ -334,11 +336,11 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     cortex_m_semihosting::hprintln!(
         "panic handler: valves inlet duty {}/{}, exhaust {}/{}",
         i,
-        SimPwm::MAX_DUTY,
+        PWM_MAX_DUTY,
         e,
-        SimPwm::MAX_DUTY
+        PWM_MAX_DUTY
     );
-    if cfg!(feature = "qemu-panic") && (i, e) == (0, SimPwm::MAX_DUTY) {
+    if cfg!(feature = "qemu-panic") && (i, e) == (0, PWM_MAX_DUTY) {
         cortex_m_semihosting::hprintln!("panic handler: valves safe (exhaust open, inlet closed)");
         exit_with(PANIC_EXIT_CODE);
     }
@@ -380,9 +382,9 @@ fn crashed(exception: Exception) -> ! {
         "{}: valves inlet duty {}/{}, exhaust {}/{}",
         exception,
         i,
-        SimPwm::MAX_DUTY,
+        PWM_MAX_DUTY,
         e,
-        SimPwm::MAX_DUTY
+        PWM_MAX_DUTY
     );
-    finish(PENDED == Some(exception) && (i, e) == (0, SimPwm::MAX_DUTY))
+    finish(PENDED == Some(exception) && (i, e) == (0, PWM_MAX_DUTY))
 }

@@ -261,12 +261,13 @@ impl Valve for FlakyValve {
 
 #[test]
 fn a_refused_valve_write_faults_and_retries_the_safe_state() {
-    use crate::plant::{SimBus, SimContraction, SimLoad, SimPressure};
+    use crate::plant::SimBus;
+    use crate::sim_io::{SimContraction, SimLoad, SimPressure};
     let bus = SimBus::new();
     let cal = crate::hal::PressureCalibration::ADC12_0_1MPA;
     let mut io = Io {
         pressure: SimPressure {
-            bus: &bus,
+            source: &bus,
             calibration: cal,
         },
         contraction: SimContraction(&bus),
