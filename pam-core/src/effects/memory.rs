@@ -65,7 +65,7 @@ use crate::error::Error;
 use crate::load_model::LoadModel;
 use crate::math::clamp;
 
-use super::branch_contraction;
+use super::offset::{branch_contraction, MAX_OFFSET_SCALE};
 
 /// Bisection steps of [`ReversalStack::inverse_pressure_mpa`] in branch
 /// contraction: a stroke below 1 over 2²⁴ is 6·10⁻⁸ of contraction, the
@@ -89,7 +89,7 @@ pub fn branch_pressure_mpa(model: &LoadModel, x: f32, branch: Branch, offset_sca
     if offset_scale == 1.0 {
         return model.pressure_mpa(x, branch);
     }
-    let k = branch.offset_sign() * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     clamp(
         model.constraint_pressure_mpa(x) + k * model.offset_mpa(x),
         0.0,
@@ -596,7 +596,7 @@ impl<const N: usize> ReversalStack<N> {
     /// changed since the cached loop, its ends follow it by one Newton step
     /// each on the same equation (eqs. 25/26 with the scaled offset), from
     /// the cached ends, instead of two bisections ([`branch_contraction`],
-    /// [`SCALED_INVERSE_STEPS`](super::SCALED_INVERSE_STEPS) steps each); a
+    /// [`SCALED_INVERSE_STEPS`](super::offset::SCALED_INVERSE_STEPS) steps each); a
     /// new loop's ends are exact. So the ends follow the scale over the
     /// periods with bounded work. The same as [`Self::inverse_pressure_mpa`]
     /// while the scale holds; after a change of 1 % in one period, within
@@ -761,7 +761,7 @@ fn rescaled(
     offset_scale: f32,
     ends: Ends,
 ) -> Reversal {
-    let recorded = clamp(recorded, 0.0, super::MAX_OFFSET_SCALE);
+    let recorded = clamp(recorded, 0.0, MAX_OFFSET_SCALE);
     let offset = recorded * model.offset_mpa(r.contraction);
     let fraction = if offset.abs() > 1e-9 {
         clamp(
@@ -772,7 +772,7 @@ fn rescaled(
     } else {
         on.offset_sign()
     };
-    let k = fraction * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+    let k = fraction * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     let branch = if k >= 0.0 {
         Branch::Contraction
     } else {
@@ -968,7 +968,7 @@ fn newton_branch(
     steps: usize,
 ) -> f32 {
     let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
-    let k = branch.offset_sign() * clamp(offset_scale, 0.0, super::MAX_OFFSET_SCALE);
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     let (lo, hi) = (model.root_contraction(), model.max_contraction());
     let g = |x: f32| model.constraint_pressure_mpa(x) + k * model.offset_mpa(x);
     let mut x = clamp(x0, lo, hi);

@@ -28,7 +28,7 @@
 use crate::error::Error;
 use crate::math::{clamp, sqrt};
 
-use super::MAX_OFFSET_SCALE;
+use super::offset::MAX_OFFSET_SCALE;
 
 /// Time constant of the pressure-rate filter, s.
 pub const RATE_FILTER_TIME_S: f32 = 0.3;

@@ -2,14 +2,14 @@
 //! with load (the paper fixes one `be` for every load).
 //!
 //! The effect yields a factor on the ellipse offset, applied by
-//! [`super::branch_contraction`]:
+//! [`super::offset::branch_contraction`]:
 //! `be(L) = be · (scale_at_min_load + scale_per_step · (L − L_min)/ΔL)`.
 
 use crate::error::Error;
 use crate::math::clamp;
 use crate::params::Params;
 
-use super::MAX_OFFSET_SCALE;
+use super::offset::MAX_OFFSET_SCALE;
 
 /// Parameters of the load-dependent loop width.
 #[derive(Clone, Copy, Debug, PartialEq)]
