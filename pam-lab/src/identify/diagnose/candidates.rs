@@ -11,9 +11,9 @@ use pam_core::effects::{
 use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
 
+use super::config::DiagnoseConfig;
 use super::evaluate::{ModelErrors, Setup};
 use super::refit::refit_base;
-use super::DiagnoseConfig;
 
 /// A candidate effect.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -609,7 +609,7 @@ fn judge(
     let cand_corr = crate::evaluate::errors::correlation_length(
         &train_res,
         setup.noise_residual,
-        2 * super::PRESSURE_MEDIAN_HALF_WIDTH + 1,
+        2 * super::config::PRESSURE_MEDIAN_HALF_WIDTH + 1,
     );
     let corr = setup.corr_len.min(cand_corr);
     let n_train = setup.train_idx.len();

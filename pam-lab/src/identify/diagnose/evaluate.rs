@@ -10,7 +10,7 @@ use crate::record::Sample;
 
 /// Simulate the model (base `coeffs` plus `effects`) over `samples` from the
 /// measured pressure and load, on the given branches (see
-/// [`super::hindsight_branches`]); one predicted contraction per sample.
+/// [`super::regimes::hindsight_branches`]); one predicted contraction per sample.
 pub fn simulate(
     coeffs: &Coeffs,
     effects: Effects,
@@ -104,7 +104,7 @@ pub(super) struct Setup<'a> {
     pub(super) pressure_weight: Option<Vec<f64>>,
     /// Where the joint refit may move `Pmax`: from this (the record's top
     /// pressure, when `Pmax` was measured from it) up to
-    /// [`super::PMAX_CEILING_OF_TOP`] times it, or `None`: held (given by
+    /// [`super::refit::PMAX_CEILING_OF_TOP`] times it, or `None`: held (given by
     /// the user).
     pub(super) pmax_floor_mpa: Option<f32>,
     /// Each sample's bin of measured contraction along the record's stroke

@@ -60,93 +60,42 @@
 //!    the error above the noise is removed.
 
 mod candidates;
+mod config;
 mod evaluate;
 mod paths;
+mod prepare;
 mod refit;
 mod regimes;
 mod report;
 mod validate;
+mod warnings;
 
-use pam_core::{Coeffs, Effects, TrackerConfig};
+use pam_core::{Coeffs, Effects};
 
 use crate::identify::fit::{FitConfig, Holdout};
-use crate::record::{Record, Sample};
+use crate::record::Record;
 
 pub use crate::evaluate::errors::{correlation_length, NoiseFloor};
 pub use candidates::{CandidateResult, EffectKind, Signature, RATE_EXPONENTS};
+pub use config::{
+    DiagnoseConfig, HOLDOUT_EVERY, ISOMETRIC_LOAD_GROUP_N, PRESSURE_MEDIAN_HALF_WIDTH,
+};
 pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
 pub use paths::{PathSummary, PATHS_MAX};
+pub use prepare::denoise_pressure;
 pub use refit::{BASE_REFIT_FIELDS, PMAX_CEILING_OF_TOP};
 pub use regimes::{hindsight_branches, pressure_regimes, regimes, Regimes};
 pub use report::{summary, CandidateSummary, DiagnoseReport, HoldoutCover, Round};
 pub use validate::{validate, DiagnoseValidation, ValidationErrors};
+pub use warnings::{model_warnings, MIN_TRAINING_HOLD_S};
 
 use evaluate::Setup;
+use prepare::{hold_channel, inverse_tables, record_branches, tracker_config};
 use refit::refit_base;
 
 /// Capacity of the reversal memory the diagnosis simulates with: pam-core's
 /// one depth, the firmware's.
 pub use pam_core::effects::memory::MEMORY_DEPTH;
-
-/// Settings of the diagnosis.
-#[derive(Clone, Debug)]
-pub struct DiagnoseConfig {
-    /// Settings of the base fit (its `holdout` is overridden: the diagnosis
-    /// fits on its own training part).
-    pub fit: FitConfig,
-    /// Smallest relative cut of the held-out RMS for a candidate to count.
-    pub min_improvement: f64,
-    /// Smallest fall of the effective-sample BIC for a candidate to count.
-    pub min_bic_drop: f64,
-    /// Most effects added.
-    pub max_effects: usize,
-    /// Iteration budget of each candidate's optimiser (LM patience).
-    pub patience: usize,
-    /// Levenberg–Marquardt iterations of the joint base refit
-    /// ([`BASE_REFIT_FIELDS`]); 0 keeps `fit::fit`'s base.
-    pub refit_iterations: usize,
-}
-
-impl Default for DiagnoseConfig {
-    fn default() -> Self {
-        DiagnoseConfig {
-            fit: FitConfig::default(),
-            min_improvement: 0.15,
-            min_bic_drop: 10.0,
-            max_effects: 2,
-            patience: 8,
-            refit_iterations: 3,
-        }
-    }
-}
-
-/// Half-width of the centred running median applied to the measured
-/// pressure before it drives the simulation, samples.
-///
-/// Why: where the muscle's curve is flat (around the inflection point) the
-/// contraction moves by 10–20 per MPa, so 0.001 MPa of sensor noise becomes
-/// 0.01–0.02 of simulated contraction, which would swamp every effect. A
-/// median (unlike a mean) keeps pressure steps sharp, so it does not fake a
-/// creep or a lag.
-pub const PRESSURE_MEDIAN_HALF_WIDTH: usize = 4;
-
-/// `samples` with the pressure through [`crate::record::split::running_median`] of
-/// `2·half + 1` samples.
-pub fn denoise_pressure(samples: &[Sample], half: usize) -> Vec<Sample> {
-    let p: Vec<f64> = samples.iter().map(|s| s.pressure_mpa).collect();
-    samples
-        .iter()
-        .zip(crate::record::split::running_median(&p, half))
-        .map(|(s, pm)| Sample {
-            pressure_mpa: pm,
-            ..*s
-        })
-        .collect()
-}
-
-/// One in how many segments (cycles, cut at load changes) is held out
-/// ([`crate::record::split::holdout_by_segment`]).
-pub const HOLDOUT_EVERY: usize = 3;
 
 /// Why a diagnosis failed.
 #[derive(Debug, thiserror::Error)]
@@ -157,105 +106,6 @@ pub enum DiagnoseError {
     /// Too little data.
     #[error("{0}")]
     Data(String),
-}
-
-/// Tracker settings for the denoised pressure of a record whose raw
-/// pressure noise is `noise_mpa` and load noise `load_noise_n`: a deadband
-/// of three raw sigmas (the median leaves about 0.4 of the noise, so its
-/// peak-to-peak stays inside), at least 0.002 MPa. A wider band delays every
-/// reversal, which where the curve is flat costs more than the noise it
-/// rejects.
-///
-/// The controller debounces a load change over several samples because its
-/// load cell is noisy; a record whose load column is clean (the rig's set
-/// load, held then stepped: noise below 1 N) switches the load model on the
-/// first sample of a step, as the muscle does. Otherwise every load step
-/// would leave a few samples on the old load's curve, a residual spike that
-/// no effect explains.
-///
-/// An isometric record's load is the measured force, which moves with the
-/// pressure on every sample: the load model follows it within twice its
-/// noise (at least 0.5 N) from the first sample, or the model would run up
-/// to 20 N behind the muscle (on the Festo muscle, 30 kPa of pressure).
-fn tracker_config(noise_mpa: f64, load_noise_n: f64, isometric: bool) -> TrackerConfig {
-    let mut cfg = TrackerConfig::DEFAULT_PRESSURE;
-    cfg.direction_deadband = (3.0 * noise_mpa).max(0.002) as f32;
-    if load_noise_n < 1.0 || isometric {
-        cfg.load_debounce_samples = 1;
-    }
-    if isometric {
-        cfg.load_threshold_n = (2.0 * load_noise_n).max(0.5) as f32;
-    }
-    cfg
-}
-
-/// Inverse tables at each load switch (as the firmware), except on an
-/// isometric record: its force switches the load model every few samples,
-/// and a table per switch was 80 % of a diagnosis' time there.
-fn inverse_tables(isometric: bool) -> crate::evaluate::simulate::InverseTables {
-    if isometric {
-        crate::evaluate::simulate::InverseTables::Never
-    } else {
-        crate::evaluate::simulate::InverseTables::AtEachSwitch
-    }
-}
-
-/// The branch of every sample from the sweep split `fit` labels its
-/// samples with ([`crate::record::split::split_branches`]; an unlabelled
-/// sample keeps the branch before it, the first ones the contraction
-/// branch): an isometric record's branches. A logger's valve fills in
-/// pulses (the Festo rig every 0.5 s), and the pressure rings by ±10 kPa
-/// after each; every ring is a reversal to [`hindsight_branches`]' deadband
-/// and a jump of the paper's model between its branches in the middle of
-/// a fill. The sweep split follows the fill and the vent.
-fn sweep_branches(labels: &[Option<pam_core::Branch>]) -> Vec<pam_core::Branch> {
-    let mut last = pam_core::Branch::Contraction;
-    labels
-        .iter()
-        .map(|b| {
-            if let Some(b) = b {
-                last = *b;
-            }
-            last
-        })
-        .collect()
-}
-
-/// The branches a record is simulated on: an isometric record's from the
-/// sweep split `labels` ([`sweep_branches`]), any other's with hindsight
-/// from the pressure and the contraction's jumps ([`hindsight_branches`]).
-fn record_branches(
-    samples: &[Sample],
-    labels: &[Option<pam_core::Branch>],
-    coeffs: &Coeffs,
-    tracker: TrackerConfig,
-    contraction_noise: f64,
-    isometric: bool,
-) -> Vec<pam_core::Branch> {
-    if isometric {
-        sweep_branches(labels)
-    } else {
-        hindsight_branches(samples, coeffs, tracker, contraction_noise)
-    }
-}
-
-/// Width of the held-out load groups of an isometric record, N
-/// ([`ModelErrors::loads`]).
-pub const ISOMETRIC_LOAD_GROUP_N: f64 = 25.0;
-
-/// The channel [`crate::record::split::holdout_by_segment`] cuts segments at
-/// (a change of more than 1 unit): the load in N for a record that holds its
-/// load; for an isometric record, the held contraction in units of five
-/// times its noise (at least 1e-4 of rest length), so that every hold is a
-/// segment of its own and the force, which moves on every sample, is not.
-fn hold_channel(samples: &[Sample], isometric: bool) -> Vec<f64> {
-    if isometric {
-        let noise = crate::record::noise_std(samples.iter().map(|s| s.contraction));
-        let unit = (5.0 * noise).max(1e-4);
-        samples.iter().map(|s| s.contraction / unit).collect()
-    } else {
-        samples.iter().map(|s| s.load_n).collect()
-    }
 }
 
 /// Run the diagnosis on `record`.
@@ -675,99 +525,5 @@ fn search(
         base_errors,
         chosen,
         paths,
-    }
-}
-
-/// Least time the training part must hold the pressure after a step for a
-/// rate law's factor at rest to be the record's, not an extrapolation, s.
-pub const MIN_TRAINING_HOLD_S: f64 = 1.0;
-
-/// What a record leaves open about `effects`, one sentence each.
-///
-/// A rate law fitted on a record whose training part holds the pressure
-/// after a step for under [`MIN_TRAINING_HOLD_S`] has its factor at rest
-/// from the ramps alone: nothing it was fitted on shows the loop while the
-/// pressure stands still, which is where a position loop's set-point
-/// spends its time. The project's own rig (Maxwell-slip friction and
-/// viscous damping, host-sim's rate rig) gives a law whose loop vanishes
-/// at rest there, and the feedforward with it tracks worse than the
-/// paper's model (host-sim/README.md).
-pub fn model_warnings(
-    effects: &Effects,
-    paced: &Regimes,
-    samples: &[Sample],
-    heldout: &[bool],
-) -> Vec<String> {
-    let mut warnings = Vec::new();
-    if let Some(rate) = &effects.rate {
-        let held_s: f64 = samples
-            .windows(2)
-            .zip(paced.hold_after_step.iter().zip(heldout))
-            .filter(|(_, (hold, out))| **hold && !**out)
-            .map(|(w, _)| (w[1].t_s - w[0].t_s).clamp(0.0, 1.0))
-            .fold(0.0, |a, b| a + b);
-        if held_s < MIN_TRAINING_HOLD_S {
-            warnings.push(format!(
-                "the rate law's factor at rest ({:.2}) is an extrapolation: the record's training part holds the pressure after a step for {held_s:.1} s, so nothing the law was fitted on shows the loop while the pressure stands still; record a few steps with holds of several seconds (pam-lab/DIAGNOSE.md, \"What is still not handled\") before using this model as a feedforward",
-                rate.scale_at_rest
-            ));
-        }
-    }
-    warnings
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use pam_core::effects::RateDependence;
-
-    fn paced(holds: &[bool]) -> Regimes {
-        Regimes {
-            after_inner_reversal: vec![false; holds.len()],
-            fast_ramp: vec![false; holds.len()],
-            slow_ramp: vec![false; holds.len()],
-            hold_after_step: holds.to_vec(),
-            max_ramp_rate_mpa_per_s: 0.2,
-        }
-    }
-
-    #[test]
-    fn a_rate_law_from_a_record_without_holds_is_flagged() {
-        let with_rate = Effects {
-            rate: Some(RateDependence::linear(0.0, 9.0)),
-            ..Effects::NONE
-        };
-        // 50 Hz, 200 samples.
-        let samples: Vec<Sample> = (0..200)
-            .map(|i| Sample {
-                t_s: i as f64 * 0.02,
-                load_n: 100.0,
-                pressure_mpa: 0.1,
-                contraction: 0.1,
-            })
-            .collect();
-        let (none, all) = (vec![false; 200], vec![true; 200]);
-        let flagged = model_warnings(&with_rate, &paced(&none), &samples, &none);
-        assert_eq!(flagged.len(), 1);
-        assert!(
-            flagged[0].contains("holds the pressure after a step for 0.0 s"),
-            "{flagged:?}"
-        );
-        // A 2 s hold in training shows the loop at rest: nothing to flag.
-        let holds: Vec<bool> = (0..200).map(|i| (50..150).contains(&i)).collect();
-        assert!(model_warnings(&with_rate, &paced(&holds), &samples, &none).is_empty());
-        // The same hold held out, or a single sample of one, does not.
-        assert_eq!(
-            model_warnings(&with_rate, &paced(&holds), &samples, &all).len(),
-            1
-        );
-        let mut one = vec![false; 200];
-        one[60] = true;
-        assert_eq!(
-            model_warnings(&with_rate, &paced(&one), &samples, &none).len(),
-            1
-        );
-        // Without a rate law the holds do not matter.
-        assert!(model_warnings(&Effects::NONE, &paced(&none), &samples, &none).is_empty());
     }
 }

@@ -17,10 +17,10 @@ use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
 
 use super::candidates::{evaluate_candidate, CandidateResult, EffectKind};
+use super::config::DiagnoseConfig;
 use super::evaluate::{ModelErrors, Setup};
 use super::refit::refit_base;
 use super::report::Round;
-use super::DiagnoseConfig;
 
 /// Most first-round earners a path is started from (the best by their
 /// located gain; five candidates give at most three on every record

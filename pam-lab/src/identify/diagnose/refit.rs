@@ -200,7 +200,7 @@ mod tests {
             })
             .chain([Branch::Expansion])
             .collect();
-        let tracker = super::super::tracker_config(0.001, 0.0, false);
+        let tracker = super::super::prepare::tracker_config(0.001, 0.0, false);
         let x = simulate(
             &truth_coeffs,
             Effects::NONE,
@@ -229,7 +229,7 @@ mod tests {
             tracker,
             heldout: (0..n).map(|i| i % 3 == 0).collect(),
             train_idx: (0..n).filter(|i| i % 3 != 0).collect(),
-            regimes: super::super::regimes(samples, start, tracker),
+            regimes: super::super::regimes::regimes(samples, start, tracker),
             branches,
             corr_len: 1.0,
             noise_residual: 0.0,

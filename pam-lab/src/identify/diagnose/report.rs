@@ -73,7 +73,7 @@ pub struct DiagnoseReport {
     /// Every path followed (one from each first-round earner, when more
     /// than one earned): its effects, held-out error, and whether it was
     /// kept (`paths.rs`).
-    pub paths: Vec<super::PathSummary>,
+    pub paths: Vec<super::paths::PathSummary>,
     /// The base model's errors.
     pub base: ModelErrors,
     /// The final model's errors.
@@ -105,7 +105,7 @@ pub struct DiagnoseReport {
     /// open at the record's top closes above it); `None` when `--pmax` gave
     /// it (held).
     pub pmax_record_top_mpa: Option<f64>,
-    /// `Pmax` refitted went to its ceiling ([`super::PMAX_CEILING_OF_TOP`]
+    /// `Pmax` refitted went to its ceiling ([`super::refit::PMAX_CEILING_OF_TOP`]
     /// times the record's top): the record does not say where the loop
     /// closes, and the diagnosis was made again with `Pmax` at the top.
     pub pmax_at_ceiling: bool,
@@ -120,7 +120,7 @@ pub struct DiagnoseReport {
     /// BIC threshold.
     pub min_bic_drop: f64,
     /// What the record leaves open about the model it ends with
-    /// ([`super::model_warnings`]), one sentence each.
+    /// ([`super::warnings::model_warnings`]), one sentence each.
     pub warnings: Vec<String>,
     /// Segments the hold-out moved to the held-out part so that a regime
     /// the pressure decides is held out too ([`crate::record::split::cover_regime`]).
@@ -281,7 +281,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
     if r.pmax_at_ceiling {
         s.push_str(&format!(
             "Pmax held at the record's top: refitted, it went to its ceiling ({:.2}x the top), so the record does not say where the loop closes\n",
-            super::PMAX_CEILING_OF_TOP
+            super::refit::PMAX_CEILING_OF_TOP
         ));
     }
     if let Some(top) = r.pmax_record_top_mpa {

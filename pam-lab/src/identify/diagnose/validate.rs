@@ -6,7 +6,10 @@
 use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
 
-use super::{denoise_pressure, tracker_config, DiagnoseConfig, DiagnoseReport};
+use super::config::{DiagnoseConfig, PRESSURE_MEDIAN_HALF_WIDTH};
+use super::evaluate::simulate;
+use super::prepare::{denoise_pressure, inverse_tables, record_branches, tracker_config};
+use super::report::DiagnoseReport;
 use crate::evaluate::errors::rms_where;
 use crate::identify::fit::{detect_test, slack_mask, TestKind};
 use crate::identify::reference::ReferenceSurface;
@@ -55,14 +58,14 @@ pub fn validate(
     let slack = slack_mask(raw, test);
     let split = split_branches(raw, &cfg.fit.split);
     let include = |i: usize| split.branch[i].is_some() && !slack[i];
-    let samples = denoise_pressure(raw, super::PRESSURE_MEDIAN_HALF_WIDTH);
+    let samples = denoise_pressure(raw, PRESSURE_MEDIAN_HALF_WIDTH);
     let tracker = tracker_config(
         crate::record::noise_std(raw.iter().map(|s| s.pressure_mpa)),
         crate::record::noise_std(raw.iter().map(|s| s.load_n)),
         test == TestKind::Isometric,
     );
     let noise = crate::evaluate::errors::noise_floor(raw);
-    let tables = super::inverse_tables(test == TestKind::Isometric);
+    let tables = inverse_tables(test == TestKind::Isometric);
     let errors = |params: &Params, effects: &Effects| {
         let nan = ValidationErrors {
             pressure_rms_mpa: f64::NAN,
@@ -75,7 +78,7 @@ pub fn validate(
         // beyond what the model reaches is predicted at `Pmax`, as the
         // static inverse clamps it to the stroke.
         let limit = params.points.max_pressure_mpa;
-        let branches = super::record_branches(
+        let branches = record_branches(
             &samples,
             &split.branch,
             &coeffs,
@@ -93,7 +96,7 @@ pub fn validate(
             limit,
         );
         let p_res: Vec<f64> = p.iter().zip(raw).map(|(p, s)| p - s.pressure_mpa).collect();
-        let x = super::simulate(&coeffs, *effects, tracker, &samples, &branches, tables);
+        let x = simulate(&coeffs, *effects, tracker, &samples, &branches, tables);
         let x_res: Vec<f64> = x.iter().zip(raw).map(|(x, s)| x - s.contraction).collect();
         ValidationErrors {
             pressure_rms_mpa: rms_where(&p_res, include).0,
