@@ -111,7 +111,7 @@ pub fn plot_scenario(
         .build_cartesian_2d(0.0..t_end, yr.clone())?;
     c.configure_mesh()
         .x_desc("time (s)")
-        .y_desc("contraction")
+        .y_desc("contraction (fraction of rest length)")
         .draw()?;
     c.draw_series(std::iter::once(Rectangle::new(
         [(0.0, yr.start), (warmup_s.min(t_end), yr.end)],
@@ -149,7 +149,7 @@ pub fn plot_scenario(
         .build_cartesian_2d(0.0..t_end, -emax..emax)?;
     c.configure_mesh()
         .x_desc("time (s)")
-        .y_desc("tracking error")
+        .y_desc("tracking error (fraction of rest length)")
         .y_label_formatter(&|v| format!("{v:.4}"))
         .draw()?;
     c.draw_series(std::iter::once(Rectangle::new(
@@ -270,7 +270,7 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
         .y_label_area_size(60)
         .build_cartesian_2d(xr, yr)?;
     c.configure_mesh()
-        .x_desc("contraction")
+        .x_desc("contraction (fraction of rest length)")
         .y_desc("pressure (MPa)")
         .draw()?;
     let (lmin, lmax) = kept.iter().fold((f64::MAX, f64::MIN), |(a, b), r| {
@@ -348,7 +348,7 @@ pub fn plot_characterisation(path: &Path, samples: &[Sample]) -> Result<(), Repo
         .y_label_area_size(60)
         .build_cartesian_2d(-0.01..0.27, -0.01..0.52)?;
     c.configure_mesh()
-        .x_desc("measured contraction")
+        .x_desc("measured contraction (fraction of rest length)")
         .y_desc("measured pressure (MPa)")
         .draw()?;
     let colours = [
@@ -473,7 +473,7 @@ pub fn plot_end_to_end(
                     String::new()
                 }
             })
-            .y_desc("RMS error (contraction)")
+            .y_desc("RMS error (fraction of rest length)")
             .draw()?;
         for (i, b) in &bars {
             for (j, v) in b.iter().enumerate() {
