@@ -429,6 +429,40 @@ fn simulate_runs_the_effects_of_the_model_file() {
 }
 
 #[test]
+fn a_pressure_in_psi_is_named() {
+    // examples/reference.csv with its pressure in psi (x 145.04): tops of
+    // about 87 psi, which must not be taken for kPa alone.
+    let dir = tempfile::tempdir().unwrap();
+    let reference = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../examples/reference.csv"
+    ))
+    .unwrap();
+    let mut lines = reference.lines();
+    let mut text = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+        let p: f64 = f[2].parse().unwrap();
+        f[2] = format!("{:.4}", p * 145.04);
+        text.push_str(&f.join(","));
+        text.push('\n');
+    }
+    let data = dir.path().join("psi.csv");
+    std::fs::write(&data, text).unwrap();
+    let out = dir.path().join("out");
+    let (ok, _, stderr) = pam_lab(&[
+        "fit",
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--no-plot",
+        "-q",
+    ]);
+    assert!(!ok, "{stderr}");
+    assert!(stderr.contains("psi (multiply by 0.006895)"), "{stderr}");
+}
+
+#[test]
 fn units_that_look_wrong_are_warned() {
     let dir = tempfile::tempdir().unwrap();
     let rec = generate(

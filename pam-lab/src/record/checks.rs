@@ -154,7 +154,8 @@ pub fn unit_warnings(record: &Record) -> Vec<String> {
     if p99 > PNEUMATIC_TOP_MPA {
         out.push(format!(
             "{}: column `pressure_mpa` reaches {} MPa: a pneumatic muscle works below about {} \
-             MPa; if the column is in bar, divide it by 10 (a hydraulic muscle: ignore this)",
+             MPa; if the column is in bar, divide it by 10; if in psi, multiply it by 0.006895 \
+             (a hydraulic muscle: ignore this)",
             record.source,
             num(p99),
             PNEUMATIC_TOP_MPA

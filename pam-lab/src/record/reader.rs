@@ -369,10 +369,22 @@ fn check_header(header: &[String]) -> Result<(), (Option<String>, DataErrorKind)
     Ok(())
 }
 
+/// Largest pressure value that may be in psi rather than kPa: 150 psi is
+/// 1.03 MPa, above a pneumatic muscle's range (a McKibben muscle's 0.6 MPa
+/// is 87 psi), while 150 kPa is a muscle barely inflated.
+const PSI_OR_KPA_UP_TO: f64 = 150.0;
+
 /// The unit an out-of-range value looks like it is in.
+///
+/// A pressure above [`MAX_PRESSURE_MPA`] up to [`PSI_OR_KPA_UP_TO`] may be
+/// psi or kPa (the first value of a ramp past the limit is near it in
+/// either), so both are named with their factors; above it, kPa.
 fn likely_unit(column: &str, value: f64) -> Option<&'static str> {
     match column {
-        "pressure_mpa" if value > MAX_PRESSURE_MPA && value <= 10_000.0 => {
+        "pressure_mpa" if value > MAX_PRESSURE_MPA && value <= PSI_OR_KPA_UP_TO => Some(
+            "pressure_mpa is in MPa; this looks like kPa (divide by 1000) or psi (multiply by 0.006895)",
+        ),
+        "pressure_mpa" if value > PSI_OR_KPA_UP_TO && value <= 10_000.0 => {
             Some("pressure_mpa is in MPa; this looks like kPa (divide by 1000)")
         }
         "contraction" if (1.0..=100.0).contains(&value) => Some(

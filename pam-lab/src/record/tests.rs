@@ -165,6 +165,14 @@ fn units_are_recognised_in_the_header_and_in_values() {
     assert_eq!(e.column.as_deref(), Some("pressure_mpa"));
     let e = parse("t_s,load_n,pressure_mpa,contraction\n0,100,250,0.02\n").unwrap_err();
     assert!(e.to_string().contains("looks like kPa"), "{e}");
+    assert!(!e.to_string().contains("psi"), "{e}");
+    // 87 may be psi (a McKibben muscle's 0.6 MPa) or kPa: both are named.
+    let e = parse("t_s,load_n,pressure_mpa,contraction\n0,100,87,0.02\n").unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("kPa (divide by 1000) or psi (multiply by 0.006895)"),
+        "{e}"
+    );
     let e = parse("t_s,load_n,pressure_mpa,contraction\n0,100,0.1,15\n").unwrap_err();
     assert!(e.to_string().contains("looks like per cent"), "{e}");
     // Beyond any unit: plain impossible.
