@@ -81,12 +81,15 @@ pub use config::{
     DiagnoseConfig, HOLDOUT_EVERY, ISOMETRIC_LOAD_GROUP_N, PRESSURE_MEDIAN_HALF_WIDTH,
 };
 pub use evaluate::{simulate, LoadError, ModelErrors, RegimeError};
-pub use paths::{PathSummary, PATHS_MAX};
+pub use paths::PATHS_MAX;
 pub use prepare::denoise_pressure;
 pub use refit::{BASE_REFIT_FIELDS, PMAX_CEILING_OF_TOP};
 pub use regimes::{hindsight_branches, pressure_regimes, regimes, Regimes};
-pub use report::{summary, CandidateSummary, DiagnoseReport, HoldoutCover, Round};
-pub use validate::{validate, DiagnoseValidation, ValidationErrors};
+pub use report::{
+    summary, CandidateSummary, DiagnoseReport, DiagnoseValidation, HoldoutCover, PathSummary,
+    Round, ValidationErrors,
+};
+pub use validate::validate;
 pub use warnings::{model_warnings, MIN_TRAINING_HOLD_S};
 
 use evaluate::Setup;

@@ -14,13 +14,12 @@
 //! is the answer.
 
 use pam_core::{Coeffs, Effects, Params};
-use serde::Serialize;
 
 use super::candidates::{evaluate_candidate, CandidateResult, EffectKind};
 use super::config::DiagnoseConfig;
 use super::evaluate::{ModelErrors, Setup};
 use super::refit::refit_base;
-use super::report::Round;
+use super::report::{PathSummary, Round};
 
 /// Most first-round earners a path is started from (the best by their
 /// located gain; five candidates give at most three on every record
@@ -75,20 +74,6 @@ impl Path {
             self.added.join(" + ")
         }
     }
-}
-
-/// One path followed: its effects in order, its held-out error, and
-/// whether it was kept.
-#[derive(Clone, Debug, Serialize)]
-pub struct PathSummary {
-    /// Effects in the order added.
-    pub effects: Vec<&'static str>,
-    /// Held-out RMS contraction error at its end.
-    pub rms_heldout: f64,
-    /// Whether each of its effects earns its place on top of the others.
-    pub kept: bool,
-    /// Why not, when not.
-    pub why_not: Option<String>,
 }
 
 /// Fit `kinds` on top of `path` (after refitting its base once more with

@@ -19,6 +19,49 @@ pub struct Round {
     pub added: Option<&'static str>,
 }
 
+/// One path followed: its effects in order, its held-out error, and
+/// whether it was kept.
+#[derive(Clone, Debug, Serialize)]
+pub struct PathSummary {
+    /// Effects in the order added.
+    pub effects: Vec<&'static str>,
+    /// Held-out RMS contraction error at its end.
+    pub rms_heldout: f64,
+    /// Whether each of its effects earns its place on top of the others.
+    pub kept: bool,
+    /// Why not, when not.
+    pub why_not: Option<String>,
+}
+
+/// One model's errors on the validation record.
+#[derive(Clone, Debug, Serialize)]
+pub struct ValidationErrors {
+    /// RMS of the pressure the model needs to reach each sample's
+    /// contraction, minus the measured pressure, MPa.
+    pub pressure_rms_mpa: f64,
+    /// RMS of the simulated contraction (driven by the measured pressure
+    /// and load) minus the measured one.
+    pub contraction_rms: f64,
+}
+
+/// The diagnosis on a record it was not fitted to.
+#[derive(Clone, Debug, Serialize)]
+pub struct DiagnoseValidation {
+    /// The record.
+    pub source: String,
+    /// Samples judged: those `fit --validate` judges (on a branch, not
+    /// slack).
+    pub samples: usize,
+    /// The base model (the paper's, refitted).
+    pub base: ValidationErrors,
+    /// The diagnosed model, its effects in.
+    pub model: ValidationErrors,
+    /// The reference surface ([`crate::identify::reference::ReferenceSurface`]) fitted to every
+    /// labelled, loaded sample of the diagnosed record: RMS pressure error
+    /// on the same samples, MPa.
+    pub reference_rms_mpa: Option<f64>,
+}
+
 /// What the hold-out's regime cover did for one regime.
 #[derive(Clone, Debug, Serialize)]
 pub struct HoldoutCover {
@@ -73,7 +116,7 @@ pub struct DiagnoseReport {
     /// Every path followed (one from each first-round earner, when more
     /// than one earned): its effects, held-out error, and whether it was
     /// kept (`paths.rs`).
-    pub paths: Vec<super::paths::PathSummary>,
+    pub paths: Vec<PathSummary>,
     /// The base model's errors.
     pub base: ModelErrors,
     /// The final model's errors.
@@ -98,7 +141,7 @@ pub struct DiagnoseReport {
     /// The base and final models on another record of the muscle
     /// (`--validate`), in pressure, beside the reference surface.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub validation: Option<super::validate::DiagnoseValidation>,
+    pub validation: Option<DiagnoseValidation>,
     /// The record's top pressure, MPa (the training part's, through a
     /// 9-sample average, as `fit` measures `Pmax`), where `Pmax` started
     /// when it was measured (the joint refit may raise it: a loop still

@@ -4,46 +4,16 @@
 //! beside the reference surface fitted to the diagnosed record.
 
 use pam_core::{Coeffs, Effects, Params};
-use serde::Serialize;
 
 use super::config::{DiagnoseConfig, PRESSURE_MEDIAN_HALF_WIDTH};
 use super::evaluate::simulate;
 use super::prepare::{denoise_pressure, inverse_tables, record_branches, tracker_config};
-use super::report::DiagnoseReport;
+use super::report::{DiagnoseReport, DiagnoseValidation, ValidationErrors};
 use crate::evaluate::errors::rms_where;
 use crate::identify::fit::{detect_test, slack_mask, TestKind};
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::split_branches;
 use crate::record::Record;
-
-/// One model's errors on the validation record.
-#[derive(Clone, Debug, Serialize)]
-pub struct ValidationErrors {
-    /// RMS of the pressure the model needs to reach each sample's
-    /// contraction, minus the measured pressure, MPa.
-    pub pressure_rms_mpa: f64,
-    /// RMS of the simulated contraction (driven by the measured pressure
-    /// and load) minus the measured one.
-    pub contraction_rms: f64,
-}
-
-/// The diagnosis on a record it was not fitted to.
-#[derive(Clone, Debug, Serialize)]
-pub struct DiagnoseValidation {
-    /// The record.
-    pub source: String,
-    /// Samples judged: those `fit --validate` judges (on a branch, not
-    /// slack).
-    pub samples: usize,
-    /// The base model (the paper's, refitted).
-    pub base: ValidationErrors,
-    /// The diagnosed model, its effects in.
-    pub model: ValidationErrors,
-    /// The reference surface ([`ReferenceSurface`]) fitted to every
-    /// labelled, loaded sample of the diagnosed record: RMS pressure error
-    /// on the same samples, MPa.
-    pub reference_rms_mpa: Option<f64>,
-}
 
 /// Evaluate `report`'s base and final models on `validation`, and the
 /// reference surface fitted to `record` (the record diagnosed).
