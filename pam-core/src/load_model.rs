@@ -857,42 +857,4 @@ mod tests {
             }
         }
     }
-
-    #[test]
-    fn the_scaled_branch_inverse_is_the_bisection_on_the_forward_model() {
-        // `effects::branch_contraction`'s loop through `branch_in_stroke`:
-        // the documented bisection bit for bit.
-        use crate::effects::{branch_contraction, MAX_OFFSET_SCALE, SCALED_INVERSE_STEPS};
-        for load in [100.0, 333.0, 600.0] {
-            let m = model(load);
-            for scale in [0.0, 0.5, 0.97, 1.3, 2.0, MAX_OFFSET_SCALE, 9.0] {
-                for br in [Branch::Contraction, Branch::Expansion] {
-                    let reference = |p: f32| {
-                        let p = clamp(p, 0.0, m.max_pressure_mpa());
-                        let k = br.offset_sign() * clamp(scale, 0.0, MAX_OFFSET_SCALE);
-                        let (mut lo, mut hi) = (m.root_contraction(), m.max_contraction());
-                        for _ in 0..SCALED_INVERSE_STEPS {
-                            let mid = 0.5 * (lo + hi);
-                            let g = m.constraint_pressure_mpa(mid) + k * m.offset_mpa(mid);
-                            if g <= p {
-                                lo = mid;
-                            } else {
-                                hi = mid;
-                            }
-                        }
-                        clamp(0.5 * (lo + hi), m.root_contraction(), m.max_contraction())
-                    };
-                    for i in 0..=2_000 {
-                        let p = -0.01 + 0.6 * i as f32 / 2_000.0;
-                        let (a, b) = (branch_contraction(&m, p, br, scale), reference(p));
-                        assert_eq!(
-                            a.to_bits(),
-                            b.to_bits(),
-                            "{load} N, {scale}, {p} MPa, {br:?}"
-                        );
-                    }
-                }
-            }
-        }
-    }
 }

@@ -37,4 +37,5 @@ pub mod identify;
 pub mod output;
 pub mod record;
 pub mod report;
+pub mod rng;
 pub mod synth;

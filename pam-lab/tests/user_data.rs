@@ -77,6 +77,13 @@ fn no_command_writes_over_its_input() {
 
 #[test]
 fn an_interrupted_diagnose_leaves_nothing_behind() {
+    // Ctrl-C (SIGINT) and a service manager's stop (SIGTERM) alike.
+    for signal in ["-INT", "-TERM"] {
+        interrupted_diagnose_leaves_nothing_behind(signal);
+    }
+}
+
+fn interrupted_diagnose_leaves_nothing_behind(signal: &str) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("diag");
     let mut child = Command::new(env!("CARGO_BIN_EXE_pam-lab"))
@@ -105,14 +112,14 @@ fn an_interrupted_diagnose_leaves_nothing_behind() {
     while staging() == 0 && t0.elapsed().as_secs() < 20 {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    assert_eq!(staging(), 1, "no staging directory appeared");
+    assert_eq!(staging(), 1, "{signal}: no staging directory appeared");
     let killed = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([signal, &child.id().to_string()])
         .status()
         .unwrap();
     assert!(killed.success());
     let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(130), "{status:?}");
-    assert_eq!(staging(), 0, "a staging directory was left");
-    assert!(!out.exists());
+    assert_eq!(status.code(), Some(130), "{signal}: {status:?}");
+    assert_eq!(staging(), 0, "{signal}: a staging directory was left");
+    assert!(!out.exists(), "{signal}");
 }

@@ -437,7 +437,7 @@ mod noise_tests {
 
     /// Deterministic Gaussian-ish noise (sum of 12 uniforms − 6).
     fn gauss(i: usize) -> f64 {
-        let mut rng = crate::synth::Rng::new(i as u64 * 7 + 3);
+        let mut rng = crate::rng::Rng::new(i as u64 * 7 + 3);
         (0..12).map(|_| rng.uniform()).sum::<f64>() - 6.0
     }
 

@@ -456,7 +456,7 @@ mod tests {
 
     /// Deterministic pseudo-noise, uniform in [-a, a].
     fn noise(i: usize, a: f64) -> f64 {
-        let mut rng = crate::synth::Rng::new(i as u64);
+        let mut rng = crate::rng::Rng::new(i as u64);
         a * (2.0 * rng.uniform() - 1.0)
     }
 
