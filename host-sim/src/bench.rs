@@ -141,9 +141,9 @@ pub struct SwitchResult {
 /// Statistics of a run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Metrics {
-    /// RMS of reference − true contraction after the warm-up.
+    /// RMS of true contraction − reference after the warm-up.
     pub rms_error: f64,
-    /// Maximum |reference − true contraction| after the warm-up.
+    /// Maximum |true contraction − reference| after the warm-up.
     pub max_error: f64,
     /// Load steps and their detection.
     pub load_steps: Vec<LoadStepResult>,
@@ -305,7 +305,7 @@ fn metrics(
     let after: Vec<f64> = trace
         .iter()
         .filter(|r| r.t_s >= warmup_s)
-        .map(|r| r.reference - r.contraction)
+        .map(|r| r.contraction - r.reference)
         .collect();
     let rms_error = (after.iter().map(|e| e * e).sum::<f64>() / after.len().max(1) as f64).sqrt();
     let max_error = after.iter().fold(0.0f64, |m, e| m.max(e.abs()));

@@ -294,7 +294,7 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     println!();
-    println!("Errors are reference minus true contraction (fraction of rest length) after a {:.0} s warm-up.", cfg.warmup_s);
+    println!("Errors are the true contraction minus the reference (fraction of rest length; RMS and largest magnitude) after a {:.0} s warm-up, as the tracking-error panels plot them.", cfg.warmup_s);
     println!("Output written to {}/", out.display());
     Ok(())
 }
