@@ -298,3 +298,19 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     println!("Output written to {}/", out.display());
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::default_out;
+
+    /// The report goes to the target directory the binary was built into,
+    /// not to `./target` of whatever directory it is run from.
+    #[test]
+    fn the_default_report_folder_is_beside_the_build_not_the_working_directory() {
+        let out = default_out();
+        assert!(out.is_absolute(), "{}", out.display());
+        assert!(out.ends_with("host-sim-report"), "{}", out.display());
+        let exe = std::env::current_exe().unwrap();
+        assert_eq!(out.parent(), exe.parent().and_then(|d| d.parent()));
+    }
+}
