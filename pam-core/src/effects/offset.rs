@@ -77,19 +77,13 @@ mod tests {
     use super::*;
     use crate::{Coeffs, Params};
 
-    fn model(load_n: f32) -> LoadModel {
-        Coeffs::new(Params::DEFAULT)
-            .unwrap()
-            .load_model(load_n)
-            .unwrap()
-    }
-
     #[test]
     fn the_scaled_branch_inverse_is_the_bisection_on_the_forward_model() {
         // `branch_contraction`'s loop through `branch_in_stroke`: the
         // documented bisection bit for bit.
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
         for load in [100.0, 333.0, 600.0] {
-            let m = model(load);
+            let m = coeffs.load_model(load).unwrap();
             for scale in [0.0, 0.5, 0.97, 1.3, 2.0, MAX_OFFSET_SCALE, 9.0] {
                 for br in [Branch::Contraction, Branch::Expansion] {
                     let reference = |p: f32| {
