@@ -119,15 +119,7 @@ pub fn fit_and_validate(
 ) -> Result<FitOutcome, FitError> {
     cfg.validate()?;
     let report = fit::fit_with_progress(record, cfg, progress)?;
-    // As the fit counts them: on a branch, not held out, not slack.
-    let slack = fit::slack_mask(&record.samples, report.test_kind);
-    let training_samples = (0..record.len())
-        .filter(|&i| {
-            report.split.branch.get(i).is_some_and(Option::is_some)
-                && !report.heldout[i]
-                && !slack[i]
-        })
-        .count();
+    let training_samples = report.training_samples(&record.samples);
     let any_heldout = report.heldout.iter().any(|h| *h);
     let validated = validation.map(|v| fit::validate(&report, v, cfg));
     let summary = FitSummary {

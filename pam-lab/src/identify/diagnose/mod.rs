@@ -469,11 +469,7 @@ fn whole_record_static_model(
     cfg.holdout = Holdout::None;
     let fit = crate::identify::fit::fit(record, &cfg).ok()?;
     let shape = fit.constraint_shape?;
-    let test = fit.test_kind;
-    let slack = crate::identify::fit::slack_mask(&record.samples, test);
-    let samples = (0..record.len())
-        .filter(|&i| fit.split.branch.get(i).is_some_and(Option::is_some) && !slack[i])
-        .count();
+    let samples = fit.training_samples(&record.samples);
     Some((fit.params, fit.coeffs, shape, samples))
 }
 

@@ -130,6 +130,19 @@ impl FitReport {
             ..pam_core::Effects::NONE
         }
     }
+
+    /// The samples of `samples` (the record fitted) the fit trained on: on
+    /// a branch, not held out, not slack.
+    pub fn training_samples(&self, samples: &[crate::record::Sample]) -> usize {
+        let slack = slack_mask(samples, self.test_kind);
+        (0..samples.len())
+            .filter(|&i| {
+                self.split.branch.get(i).is_some_and(Option::is_some)
+                    && !self.heldout.get(i).copied().unwrap_or(false)
+                    && !slack[i]
+            })
+            .count()
+    }
 }
 
 /// A fitted model and its reference surface on a record neither was
