@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects).to_vec()
         }
         None if env::var_os("CARGO_FEATURE_QEMU_EFFECTS_BLOB").is_some() => {
-            // A version-2 blob with every effect a blob can carry (the
+            // A version-2 blob with every effect that version carries (the
             // self-test's: see firmware::scenario::EFFECTS_BLOB_EFFECTS).
             use pam_core::effects::*;
             let effects = pam_core::Effects {
@@ -58,6 +58,8 @@ fn main() -> Result<(), Box<dyn Error>> {
                     tilt_per_step: 0.0,
                     ..ConstraintShape::NEUTRAL
                 }),
+                // Version 4's effect: not in this version-2 blob.
+                pressure_lag: None,
             };
             pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects).to_vec()
         }

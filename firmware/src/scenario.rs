@@ -125,11 +125,12 @@ pub const MEMORY_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
     creep: None,
     width: None,
     shape: None,
+    pressure_lag: None,
 };
 
 /// The effects of the version-2 blob the `qemu-effects-blob` self-test
-/// boots (`firmware/build.rs` writes the same): every effect a blob can
-/// carry, each small (the self-test plant has none of them: the run checks
+/// boots (`firmware/build.rs` writes the same): every effect a version-2
+/// blob can carry, each small (the self-test plant has none of them: the run checks
 /// that a controller inverting all of them boots, runs within its
 /// worst-case budget and still tracks within [`MAX_ERROR_BOUND`]).
 pub const EFFECTS_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
@@ -153,6 +154,8 @@ pub const EFFECTS_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
         tilt_per_step: 0.0,
         ..pam_core::effects::ConstraintShape::NEUTRAL
     }),
+    // Version 4's: not in this version-2 blob.
+    pressure_lag: None,
 };
 
 /// Run the scenario with the controller built from `blob` and the given
@@ -426,6 +429,7 @@ mod tests {
             creep: acc.creep.or(e.creep),
             width: acc.width.or(e.width),
             shape: acc.shape.or(e.shape),
+            pressure_lag: acc.pressure_lag.or(e.pressure_lag),
         });
         let paper = blob();
         for (name, effects) in cases.iter().copied().chain([("all", all)]) {

@@ -144,7 +144,8 @@ impl<'a> Floats<'a> {
     /// `Effects::validate` must refuse them).
     pub fn effects(&mut self) -> pam_core::Effects {
         use pam_core::effects::{
-            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
+            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureLag,
+            RateDependence,
         };
         let on = self.byte();
         pam_core::Effects {
@@ -179,6 +180,9 @@ impl<'a> Floats<'a> {
                 root_shift_per_step_sq: self.near(0.01, 2.0),
                 end_shift_per_step_sq: self.near(0.01, 2.0),
                 ..ConstraintShape::NEUTRAL
+            }),
+            pressure_lag: (on & 32 != 0).then(|| PressureLag {
+                time_constant_s: self.near(0.02, 2.0),
             }),
         }
     }

@@ -45,6 +45,17 @@
 //! encoding; a version-3 blob without a shape or with the identity table is
 //! refused.
 //!
+//! # Version 4: a model with a pressure lag
+//!
+//! Version 3's layout (the stroke table's knots are the identity's when the
+//! model has none) with the payload extended by the pressure lag's time
+//! constant ([`crate::effects::PressureLag`], flag [`FLAG_PRESSURE_LAG`]),
+//! [`BLOB_V4_LEN`] = 424 bytes: bytes 0..416 as version 3 (version field
+//! 4, payload length [`PAYLOAD_V4_LEN`]), 416..420 `time_constant_s`,
+//! 420..424 the CRC-32 of bytes 0..420. Written only for a model with the
+//! lag; the lag's flag in a version 2 or 3 blob, or its absence in a
+//! version 4 one, is refused.
+//!
 //! An effect whose flag is clear has its fields written as zeros, and they
 //! must be zero to decode (one encoding per model). [`decode_model`] reads
 //! both versions (version 1: no effects), checks framing and CRC and
@@ -55,7 +66,8 @@ use crate::coeffs::Coeffs;
 use crate::effects::shape::table::{TABLE_KNOTS, TABLE_LOADS};
 use crate::effects::shape::StrokeTable;
 use crate::effects::{
-    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, RateDependence,
+    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, PressureLag,
+    RateDependence,
 };
 use crate::error::Error;
 use crate::params::{CriticalPoints, Params, Point};
@@ -78,8 +90,11 @@ pub const FLAG_CREEP: u32 = 1 << 2;
 pub const FLAG_WIDTH: u32 = 1 << 3;
 /// Effect flag: the constraint-shape correction.
 pub const FLAG_SHAPE: u32 = 1 << 4;
+/// Effect flag: the pressure lag (version 4 only).
+pub const FLAG_PRESSURE_LAG: u32 = 1 << 5;
 /// Every flag this crate knows.
-pub const KNOWN_FLAGS: u32 = FLAG_MEMORY | FLAG_RATE | FLAG_CREEP | FLAG_WIDTH | FLAG_SHAPE;
+pub const KNOWN_FLAGS: u32 =
+    FLAG_MEMORY | FLAG_RATE | FLAG_CREEP | FLAG_WIDTH | FLAG_SHAPE | FLAG_PRESSURE_LAG;
 /// `f32` fields of the effects in a version-2 payload.
 pub const EFFECT_FIELDS: usize = 21;
 /// Version-2 payload length, bytes: parameters, flags, effect fields.
@@ -94,8 +109,14 @@ pub const TABLE_FIELDS: usize = TABLE_LOADS * TABLE_KNOTS;
 pub const PAYLOAD_V3_LEN: usize = PAYLOAD_V2_LEN + 4 * TABLE_FIELDS;
 /// Version-3 blob length, bytes.
 pub const BLOB_V3_LEN: usize = 8 + PAYLOAD_V3_LEN + 4;
+/// Format version 4 (version 3 and the pressure lag).
+pub const BLOB_VERSION_V4: u16 = 4;
+/// Version-4 payload length, bytes.
+pub const PAYLOAD_V4_LEN: usize = PAYLOAD_V3_LEN + 4;
+/// Version-4 blob length, bytes.
+pub const BLOB_V4_LEN: usize = 8 + PAYLOAD_V4_LEN + 4;
 /// The longest blob of any version this crate reads, bytes.
-pub const MAX_BLOB_LEN: usize = BLOB_V3_LEN;
+pub const MAX_BLOB_LEN: usize = BLOB_V4_LEN;
 /// Number of `f32` fields in the payload.
 pub const PAYLOAD_FIELDS: usize = Params::FIELD_COUNT;
 /// Payload length, bytes.
@@ -251,6 +272,9 @@ fn effect_fields(e: &Effects) -> (u32, [f32; EFFECT_FIELDS]) {
         f[19] = c.root_shift_per_step_sq;
         f[20] = c.end_shift_per_step_sq;
     }
+    if e.pressure_lag.is_some() {
+        flags |= FLAG_PRESSURE_LAG;
+    }
     (flags, f)
 }
 
@@ -306,6 +330,8 @@ fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> 
             end_shift_per_step_sq: f[20],
             table: StrokeTable::NEUTRAL,
         }),
+        // Its field is after the table (version 4): read there.
+        pressure_lag: None,
     };
     Ok(e)
 }
@@ -350,12 +376,40 @@ pub fn encode_v2(params: &Params, effects: &Effects) -> [u8; BLOB_V2_LEN] {
 /// shape's stroke table (identity knots without a shape).
 pub fn encode_v3(params: &Params, effects: &Effects) -> [u8; BLOB_V3_LEN] {
     let mut out = [0u8; BLOB_V3_LEN];
-    let mut at = write_v2_part(&mut out, params, effects, BLOB_VERSION_V3, PAYLOAD_V3_LEN);
+    let at = write_v3_part(&mut out, params, effects, BLOB_VERSION_V3, PAYLOAD_V3_LEN);
+    let crc = crc32(&out[..at]);
+    out[at..].copy_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// Write the version-3 part (the version-2 part and the stroke table's
+/// knots, the identity's without a table) into `out`; returns where it
+/// ends.
+fn write_v3_part(
+    out: &mut [u8],
+    params: &Params,
+    effects: &Effects,
+    version: u16,
+    payload_len: usize,
+) -> usize {
+    let mut at = write_v2_part(out, params, effects, version, payload_len);
     let table = effects.shape.map_or(StrokeTable::NEUTRAL, |s| s.table);
     for v in table.knots.iter().flatten() {
         out[at..at + 4].copy_from_slice(&v.to_le_bytes());
         at += 4;
     }
+    at
+}
+
+/// Encode `params` and `effects` in format version 4: version 3 and the
+/// pressure lag's time constant (0 without the lag, which
+/// [`encode_model`] never writes in this version).
+pub fn encode_v4(params: &Params, effects: &Effects) -> [u8; BLOB_V4_LEN] {
+    let mut out = [0u8; BLOB_V4_LEN];
+    let mut at = write_v3_part(&mut out, params, effects, BLOB_VERSION_V4, PAYLOAD_V4_LEN);
+    let tau = effects.pressure_lag.map_or(0.0, |l| l.time_constant_s);
+    out[at..at + 4].copy_from_slice(&tau.to_le_bytes());
+    at += 4;
     let crc = crc32(&out[..at]);
     out[at..].copy_from_slice(&crc.to_le_bytes());
     out
@@ -363,12 +417,16 @@ pub fn encode_v3(params: &Params, effects: &Effects) -> [u8; BLOB_V3_LEN] {
 
 /// The blob of a model in the first version that holds it: version 1
 /// without effects, version 2 with effects, version 3 with a shape whose
-/// stroke table is not the identity. The bytes and their length.
+/// stroke table is not the identity, version 4 with the pressure lag. The
+/// bytes and their length.
 pub fn encode_model(params: &Params, effects: &Effects) -> ([u8; MAX_BLOB_LEN], usize) {
     let mut out = [0u8; MAX_BLOB_LEN];
     let len = if *effects == Effects::NONE {
         out[..BLOB_LEN].copy_from_slice(&encode(params));
         BLOB_LEN
+    } else if effects.pressure_lag.is_some() {
+        out[..BLOB_V4_LEN].copy_from_slice(&encode_v4(params, effects));
+        BLOB_V4_LEN
     } else if effects.shape.is_some_and(|s| !s.table.is_neutral()) {
         out[..BLOB_V3_LEN].copy_from_slice(&encode_v3(params, effects));
         BLOB_V3_LEN
@@ -388,7 +446,10 @@ pub fn framed_len(bytes: &[u8]) -> Option<usize> {
         return None;
     }
     let version = u16::from_le_bytes([head[4], head[5]]);
-    if version != BLOB_VERSION && version != BLOB_VERSION_V2 && version != BLOB_VERSION_V3 {
+    if !matches!(
+        version,
+        BLOB_VERSION | BLOB_VERSION_V2 | BLOB_VERSION_V3 | BLOB_VERSION_V4
+    ) {
         return None;
     }
     let len = 8 + usize::from(u16::from_le_bytes([head[6], head[7]])) + 4;
@@ -403,9 +464,17 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
     }
     match u16::from_le_bytes([bytes[4], bytes[5]]) {
         BLOB_VERSION => decode_params(bytes).map(|p| (p, Effects::NONE)),
-        version @ (BLOB_VERSION_V2 | BLOB_VERSION_V3) => {
+        version @ (BLOB_VERSION_V2 | BLOB_VERSION_V3 | BLOB_VERSION_V4) => {
+            let v4 = version == BLOB_VERSION_V4;
             let v3 = version == BLOB_VERSION_V3;
-            checked_body(bytes, if v3 { PAYLOAD_V3_LEN } else { PAYLOAD_V2_LEN })?;
+            checked_body(
+                bytes,
+                match version {
+                    BLOB_VERSION_V2 => PAYLOAD_V2_LEN,
+                    BLOB_VERSION_V3 => PAYLOAD_V3_LEN,
+                    _ => PAYLOAD_V4_LEN,
+                },
+            )?;
             let word = |i: usize| [bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]];
             let mut f = [0f32; PAYLOAD_FIELDS];
             for (k, v) in f.iter_mut().enumerate() {
@@ -418,7 +487,12 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
                 *v = f32::from_le_bytes(word(p_end + 4 + 4 * k));
             }
             let mut effects = effects_from(flags, &ef)?;
-            if v3 {
+            if (flags & FLAG_PRESSURE_LAG != 0) != v4 {
+                return Err(Error::Blob(
+                    "the pressure lag's flag is set exactly in a version-4 blob",
+                ));
+            }
+            if v3 || v4 {
                 let mut table = StrokeTable::NEUTRAL;
                 let mut at = 8 + PAYLOAD_V2_LEN;
                 for v in table.knots.iter_mut().flatten() {
@@ -427,11 +501,18 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
                 }
                 match effects.shape.as_mut() {
                     Some(shape) if !table.is_neutral() => shape.table = table,
+                    // Version 4 holds the identity's knots without a table.
+                    _ if v4 && table.is_neutral() => {}
                     _ => {
                         return Err(Error::Blob(
                             "a version-3 blob without a shape's stroke table (write version 2)",
                         ))
                     }
+                }
+                if v4 {
+                    effects.pressure_lag = Some(PressureLag {
+                        time_constant_s: f32::from_le_bytes(word(at)),
+                    });
                 }
             }
             Ok((from_fields(&f), effects))
@@ -554,6 +635,49 @@ mod tests {
     }
 
     #[test]
+    fn a_model_with_a_pressure_lag_is_version_4_with_or_without_a_table() {
+        let p = Params::DEFAULT;
+        let lag = Some(PressureLag {
+            time_constant_s: 0.015,
+        });
+        for e in [
+            Effects {
+                pressure_lag: lag,
+                ..Effects::NONE
+            },
+            Effects {
+                pressure_lag: lag,
+                ..with_a_table()
+            },
+            Effects {
+                pressure_lag: lag,
+                ..with_every_effect()
+            },
+        ] {
+            let (b, n) = encode_model(&p, &e);
+            assert_eq!(n, BLOB_V4_LEN);
+            assert_eq!(framed_len(&b), Some(BLOB_V4_LEN));
+            let (c, back) = decode_model(&b[..n]).unwrap();
+            assert_eq!((c.params(), back), (&p, e));
+            for i in (0..BLOB_V4_LEN * 8).step_by(7) {
+                let mut x = b;
+                x[i / 8] ^= 1 << (i % 8);
+                assert!(decode_model(&x[..n]).is_err(), "bit {i}");
+            }
+        }
+        // Without the lag version 4 is refused (one encoding per model), and
+        // so is a time constant out of range.
+        assert!(decode_model(&encode_v4(&p, &with_a_table())).is_err());
+        let bad = Effects {
+            pressure_lag: Some(PressureLag {
+                time_constant_s: 2.0,
+            }),
+            ..Effects::NONE
+        };
+        assert!(decode_model(&encode_v4(&p, &bad)).is_err());
+    }
+
+    #[test]
     fn a_version_3_blob_is_checked_like_the_others() {
         let p = Params::DEFAULT;
         let blob = encode_v3(&p, &with_a_table());
@@ -611,6 +735,7 @@ mod tests {
                 end_shift_per_step_sq: -0.004,
                 table: StrokeTable::NEUTRAL,
             }),
+            pressure_lag: None,
         }
     }
 
@@ -624,6 +749,7 @@ mod tests {
                 creep: all.creep.filter(|_| mask & FLAG_CREEP != 0),
                 width: all.width.filter(|_| mask & FLAG_WIDTH != 0),
                 shape: all.shape.filter(|_| mask & FLAG_SHAPE != 0),
+                pressure_lag: None,
             };
             let blob = encode_v2(&Params::DEFAULT, &e);
             assert_eq!(
@@ -672,9 +798,19 @@ mod tests {
     #[test]
     fn unknown_flags_stray_fields_and_invalid_effects_are_refused() {
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
-        b[64] = 1 << 5;
+        b[64] = 1 << 6;
         refresh_crc(&mut b);
         assert_eq!(decode_model(&b), Err(Error::Blob("unknown effect flags")));
+        // The pressure lag's flag without its field (version 4's).
+        let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
+        b[64] = 1 << 5;
+        refresh_crc(&mut b);
+        assert_eq!(
+            decode_model(&b),
+            Err(Error::Blob(
+                "the pressure lag's flag is set exactly in a version-4 blob"
+            ))
+        );
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
         b[70] = 0x3F; // a memory field without the memory flag
         refresh_crc(&mut b);

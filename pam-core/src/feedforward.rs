@@ -30,7 +30,12 @@
 //!    reversal remembered, on the branch: constraint pressure plus the
 //!    scaled offset ([`branch_pressure_mpa`], eqs. 25/26), the model's
 //!    closed-form direction;
-//! 5. the rate filter takes this period's constraint pressure.
+//! 5. the rate filter takes this period's constraint pressure;
+//! 6. pressure lag: the pressure to command so that the muscle's pressure
+//!    (the lag's next output) is the one the model needs, in closed form
+//!    from the lag state
+//!    ([`PressureLag::command_mpa`](crate::effects::PressureLag::command_mpa)), within `[0, Pmax]`;
+//!    the lag advances with the command.
 //!
 //! Fixed-size state, no allocation, no panic, bounded work: the creep
 //! inverse is a few operations, the shape inverse
@@ -72,8 +77,8 @@
 use crate::branch::Branch;
 use crate::effects::memory::branch_pressure_mpa;
 use crate::effects::{
-    Creep, CreepState, Effects, NonLocalMemory, RateState, Reversal, ReversalStack, ShapeInverse,
-    MAX_OFFSET_SCALE, MAX_STEP_S,
+    Creep, CreepState, Effects, NonLocalMemory, PressureLagState, RateState, Reversal,
+    ReversalStack, ShapeInverse, MAX_OFFSET_SCALE, MAX_STEP_S,
 };
 use crate::error::Error;
 use crate::load_model::LoadModel;
@@ -103,6 +108,9 @@ pub struct ModelInverse {
     dt_s: f32,
     /// The creep lag's gain over one period ([`Creep::lag_gain`]).
     creep_lag_gain: f32,
+    /// The pressure lag's gain over one period
+    /// ([`PressureLag::lag_gain`](crate::effects::PressureLag::lag_gain)).
+    pressure_lag_gain: f32,
     /// Whether the shape has a stroke table that is not the identity
     /// (checked once here, so a shape without one costs no table work when
     /// the load switches).
@@ -119,6 +127,7 @@ pub struct InverseState<const N: usize> {
     memory: MemoryState<N>,
     rate: RateState,
     creep: CreepState,
+    pressure_lag: PressureLagState,
     /// The offset scale of the last call, minus 1 (so that the default
     /// state's 0 is the paper's scale).
     scale_minus_one: f32,
@@ -144,6 +153,7 @@ impl ModelInverse {
             effects,
             dt_s,
             creep_lag_gain: effects.creep.map_or(0.0, |c| c.lag_gain(dt_s)),
+            pressure_lag_gain: effects.pressure_lag.map_or(0.0, |l| l.lag_gain(dt_s)),
             shape_table: effects.shape.is_some_and(|s| !s.table.is_neutral()),
         })
     }
@@ -246,7 +256,15 @@ impl ModelInverse {
                 r.max_rate_mpa_per_s,
             );
         }
-        p_mpa
+        match &self.effects.pressure_lag {
+            Some(l) => l.command_mpa(
+                &mut state.pressure_lag,
+                p_mpa,
+                self.pressure_lag_gain,
+                params.points.max_pressure_mpa,
+            ),
+            None => p_mpa,
+        }
     }
 }
 

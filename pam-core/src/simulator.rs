@@ -6,7 +6,8 @@ use crate::branch::Branch;
 use crate::coeffs::Coeffs;
 use crate::effects::memory::Blend;
 use crate::effects::{
-    branch_contraction, CreepState, Effects, RateState, Reversal, ReversalStack, MAX_STEP_S,
+    branch_contraction, CreepState, Effects, PressureLagState, RateState, Reversal, ReversalStack,
+    MAX_STEP_S,
 };
 use crate::error::Error;
 use crate::math::clamp;
@@ -15,8 +16,9 @@ use crate::tracker::{Tracker, TrackerConfig};
 /// The paper's model plus [`Effects`], predicting contraction from measured
 /// pressure and load one sample at a time.
 ///
-/// The branch and the active load come from a [`Tracker`] fed the pressure
-/// (the paper's mode switching); the static contraction is the branch inverse
+/// The pressure lag, when on, turns the measured pressure into the
+/// muscle's, which the rest runs on. The branch and the active load come
+/// from a [`Tracker`] fed the pressure (the paper's mode switching); the static contraction is the branch inverse
 /// (with the memory's minor loop and the scaled offset when those are on);
 /// creep filters it. With [`Effects::NONE`] this is exactly the paper's model
 /// driven by pressure: `model.contraction(p, branch)`.
@@ -33,6 +35,7 @@ pub struct Simulator<const N: usize> {
     stack: ReversalStack<N>,
     rate: RateState,
     creep: CreepState,
+    pressure_lag: PressureLagState,
     last_t_s: Option<f32>,
     last_pressure_mpa: f32,
     /// Pressure and static contraction at the extreme of the current sweep.
@@ -64,6 +67,7 @@ impl<const N: usize> Simulator<N> {
             stack: ReversalStack::default(),
             rate: RateState::default(),
             creep: CreepState::default(),
+            pressure_lag: PressureLagState::default(),
             last_t_s: None,
             last_pressure_mpa: 0.0,
             extreme: None,
@@ -157,6 +161,16 @@ impl<const N: usize> Simulator<N> {
             self.last_t_s = Some(t_s);
         }
         let dt_ok = dt_s > 0.0 && dt_s <= MAX_STEP_S;
+        // The muscle's pressure: the measured one through the line's lag
+        // (everything below runs on it, the tracker's branches too).
+        let p = match &self.effects.pressure_lag {
+            Some(l) => l.step(
+                &mut self.pressure_lag,
+                p,
+                if dt_ok { dt_s } else { f32::NAN },
+            ),
+            None => p,
+        };
 
         let update = self.tracker.update(&self.coeffs, p, load_n);
         let branch = branch.unwrap_or(self.tracker.branch());

@@ -44,6 +44,9 @@ fn all_effects() -> Effects {
             end_shift_per_step_sq: 0.02,
             ..ConstraintShape::NEUTRAL
         }),
+        pressure_lag: Some(pam_core::effects::PressureLag {
+            time_constant_s: 0.02,
+        }),
     }
 }
 

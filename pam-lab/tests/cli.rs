@@ -504,3 +504,44 @@ fn units_that_look_wrong_are_warned() {
         "{stderr}"
     );
 }
+
+#[test]
+fn diagnose_warns_of_a_time_column_in_milliseconds() {
+    // The effects' time constants are in seconds: a record logged in ms
+    // would be diagnosed 1000× too slow (a rate law read as memory).
+    let dir = tempfile::tempdir().unwrap();
+    let rec = generate(
+        &Params::DEFAULT,
+        &Protocol::quick(&[100.0, 300.0]),
+        0.001,
+        0.0008,
+        5,
+    );
+    let mut text = String::from("t_s,load_n,pressure_mpa,contraction\n");
+    for s in &rec.samples {
+        text.push_str(&format!(
+            "{:.1},{},{:.5},{:.5}\n",
+            s.t_s * 1000.0,
+            s.load_n,
+            s.pressure_mpa,
+            s.contraction
+        ));
+    }
+    let data = dir.path().join("ms.csv");
+    std::fs::write(&data, text).unwrap();
+    let out = dir.path().join("out");
+    let (_, _, stderr) = pam_lab(&[
+        "diagnose",
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--max-effects",
+        "0",
+        "--no-plot",
+        "-q",
+    ]);
+    assert!(
+        stderr.contains("column `t_s` steps") && stderr.contains("divide it by 1000"),
+        "{stderr}"
+    );
+}

@@ -13,9 +13,21 @@ mod cli_support;
 use cli_support::pam_lab;
 use pam_lab::synth::chou_hannaford_force_n;
 
+/// The pressure sensor's view of the muscle: `None`, the muscle's own
+/// pressure; or a sensor at the valve, ahead of the muscle by a line of
+/// time constant `lag_s`, where the valve's pulses ring.
+#[derive(Clone, Copy)]
+struct Sensor {
+    lag_s: Option<f64>,
+}
+
 /// One test at one held length: fill to 0.62 MPa, hold, vent to a floor;
 /// 1.8 ms samples. `reset_at`: the logger's clock restarts at that sample.
-fn write_test(path: &Path, eps: f64, seed: u64, reset_at: Option<usize>) {
+/// With a sensor ahead of the muscle, the valve fills and vents in pulses
+/// every 0.5 s that ring at 25 Hz (12 kPa, decaying in 40 ms) at the
+/// sensor, and the muscle's pressure is the sensor's through a first-order
+/// lag (the line and the bladder's volume).
+fn write_test(path: &Path, eps: f64, seed: u64, reset_at: Option<usize>, sensor: Sensor) {
     let mut rng = seed
         .wrapping_mul(6364136223846793005)
         .wrapping_add(1442695040888963407);
@@ -28,16 +40,32 @@ fn write_test(path: &Path, eps: f64, seed: u64, reset_at: Option<usize>) {
     let mut text = String::new();
     let n = 8000;
     let mut t_clock = 0.0;
+    let mut muscle: Option<f64> = None;
     for i in 0..n {
         let t = i as f64 * 0.0018;
-        let (p, filling) = if t < 7.0 {
+        let (mut p, filling) = if t < 7.0 {
             (0.62 * (t / 7.0), true)
         } else if t < 9.0 {
             (0.62, true)
         } else {
             (0.07 + 0.55 * (-(t - 9.0) / 1.2).exp(), false)
         };
-        let f = chou_hannaford_force_n(p, eps, filling);
+        let p_muscle = match sensor.lag_s {
+            None => p,
+            Some(tau) => {
+                let since = t % 0.5;
+                if !(7.0..9.0).contains(&t) {
+                    p += 0.012
+                        * (-since / 0.04).exp()
+                        * (2.0 * std::f64::consts::PI * 25.0 * since).sin();
+                }
+                let k = 1.0 - (-0.0018 / tau).exp();
+                let m = muscle.map_or(p, |m| m + k * (p - m));
+                muscle = Some(m);
+                m
+            }
+        };
+        let f = chou_hannaford_force_n(p_muscle, eps, filling);
         // The load cell reads −4.6 N at no force, ±0.7 N of noise; the
         // pressure sensor is quantised to 0.766 kPa.
         let force = f - 4.6 + 1.4 * noise();
@@ -60,6 +88,11 @@ const HELD_CM: [f64; 4] = [8.3, 7.975, 7.65, 7.325];
 /// and 10 (test), imported through a mapping into `dir/records`: the
 /// records' directory and import's stdout and stderr.
 fn imported(dir: &Path) -> (std::path::PathBuf, bool, String, String) {
+    imported_with(dir, Sensor { lag_s: None })
+}
+
+/// [`imported`] with the pressure read by `sensor`.
+fn imported_with(dir: &Path, sensor: Sensor) -> (std::path::PathBuf, bool, String, String) {
     let data = dir.join("logger");
     std::fs::create_dir(&data).unwrap();
     let mut map = String::from(
@@ -75,7 +108,7 @@ fn imported(dir: &Path) -> (std::path::PathBuf, bool, String, String) {
                 let file = format!("m_{k}_Test{t}.csv");
                 let eps = (8.3 - held) / 8.3;
                 let reset = (k == 1 && t == 9).then_some(4205);
-                write_test(&data.join(&file), eps, t * 10 + k as u64, reset);
+                write_test(&data.join(&file), eps, t * 10 + k as u64, reset, sensor);
                 map.push_str(&format!(
                     "  {{ path = \"{file}\", held_length = {held} }},\n"
                 ));
@@ -284,6 +317,46 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
     for png in ["residual.png", "loops.png"] {
         assert!(diag.join(png).metadata().unwrap().len() > 10_000, "{png}");
     }
+}
+
+/// A sensor ahead of the muscle (a 15 ms line, the valve's pulses ringing
+/// at the sensor): diagnose adds the pressure lag and finds its time
+/// constant, and the model it writes boots with its lag. Release only,
+/// as above.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn a_sensor_ahead_of_the_muscle_is_diagnosed_as_a_pressure_lag() {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, ok, stdout, stderr) = imported_with(dir.path(), Sensor { lag_s: Some(0.015) });
+    assert!(ok, "{stdout}{stderr}");
+    let diag = dir.path().join("diagnose");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "diagnose",
+        out.join("train.csv").to_str().unwrap(),
+        "--validate",
+        out.join("test.csv").to_str().unwrap(),
+        "--no-plot",
+        "-o",
+        diag.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}{stderr}");
+    eprintln!("{stdout}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).unwrap()).unwrap();
+    let added: Vec<&str> = report["effects_added"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert!(added.contains(&"pressure_lag"), "{added:?}");
+    let tau = report["effects"]["pressure_lag"]["time_constant_s"]
+        .as_f64()
+        .unwrap();
+    assert!((0.0075..=0.03).contains(&tau), "{tau}");
+    let blob = std::fs::read(diag.join("model.blob")).unwrap();
+    let (_, effects) = pam_core::blob::decode_model(&blob).unwrap();
+    assert!(effects.pressure_lag.is_some());
 }
 
 #[test]

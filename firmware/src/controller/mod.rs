@@ -174,9 +174,14 @@ impl Controller {
                 &config.safety,
                 &coeffs,
                 config.dt_s,
-                law::inverted_effects(&config.feedforward)
-                    .and_then(|e| e.creep)
-                    .map(|c| c.time_constant_s),
+                law::inverted_effects(&config.feedforward).and_then(|e| {
+                    let creep = e.creep.map(|c| c.time_constant_s);
+                    let lag = e.pressure_lag.map(|l| l.time_constant_s);
+                    match (creep, lag) {
+                        (Some(a), Some(b)) => Some(a.max(b)),
+                        (a, b) => a.or(b),
+                    }
+                }),
             ),
             ki_dt: config.ki_mpa_per_s * config.dt_s,
             build_units: table_build_units(&config.feedforward),

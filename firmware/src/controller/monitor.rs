@@ -330,15 +330,16 @@ impl Monitor {
     /// The rule table for `s` and the coefficients' calibrated load range
     /// and `Pmax`.
     ///
-    /// `creep_time_constant_s`: the model's creep, if it has one. The
-    /// contraction then keeps moving towards the static curve for a few
-    /// time constants after the pressure stops, so the pressure envelope
-    /// relaxes with the longer of that and `implausible_lag_s`.
+    /// `lag_time_constant_s`: the slowest lag of the model's answer, its
+    /// creep's or its pressure lag's, if it has one. The contraction then
+    /// keeps moving for a few time constants after the measured pressure
+    /// stops, so the pressure envelope relaxes with the longer of that and
+    /// `implausible_lag_s`.
     pub fn new(
         s: &SafetyConfig,
         coeffs: &Coeffs,
         dt_s: f32,
-        creep_time_constant_s: Option<f32>,
+        lag_time_constant_s: Option<f32>,
     ) -> Monitor {
         use SensorId::*;
         let p = coeffs.params();
@@ -392,7 +393,7 @@ impl Monitor {
             last_mpa: 0.0,
             band: s.implausible_contraction,
             envelope_gain: {
-                let lag_s = match creep_time_constant_s {
+                let lag_s = match lag_time_constant_s {
                     Some(tau) if tau > s.implausible_lag_s => tau,
                     _ => s.implausible_lag_s,
                 };

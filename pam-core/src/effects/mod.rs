@@ -8,6 +8,7 @@
 //! | [`RateDependence`] | ellipse height grows with a power of the pressure rate, saturating at a rate | `scale_at_rest`, `scale_per_mpa_per_s`, `exponent`, `filter_time_s`, `max_rate_mpa_per_s` |
 //! | [`Creep`] | slow first-order relaxation after pressure steps | `gain`, `time_constant_s` |
 //! | [`LoadDependentWidth`] | ellipse height linear in load | `scale_at_min_load`, `scale_per_step` |
+//! | [`PressureLag`] | the muscle's pressure a first-order lag of the measured one | `time_constant_s` |
 //! | [`ConstraintShape`] | a static curve outside the cubic family: a monotone correction along each load's stroke, both branches alike, and its ends moved with load | `bulge`, `tilt` (and per load step), `root_shift`, `end_shift` (and per load step, per squared load step) |
 //!
 //! All are `no_std`, allocation-free, and panic-free per sample; the memory
@@ -38,6 +39,7 @@
 pub mod creep;
 pub mod memory;
 pub mod offset;
+pub mod pressure_lag;
 pub mod rate;
 pub mod shape;
 pub mod width;
@@ -45,6 +47,7 @@ pub mod width;
 pub use creep::{Creep, CreepState};
 pub use memory::{NonLocalMemory, Reversal, ReversalStack};
 pub use offset::{branch_contraction, MAX_OFFSET_SCALE, SCALED_INVERSE_STEPS};
+pub use pressure_lag::{PressureLag, PressureLagState};
 pub use rate::{RateDependence, RateState};
 pub use shape::{ConstraintShape, ShapeInverse, StrokeTable};
 pub use width::LoadDependentWidth;
@@ -70,6 +73,13 @@ pub struct Effects {
     pub width: Option<LoadDependentWidth>,
     /// A correction of the static curve along the stroke.
     pub shape: Option<ConstraintShape>,
+    /// The muscle's pressure lagging the measured one (absent from the
+    /// model files written before it: off).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub pressure_lag: Option<PressureLag>,
 }
 
 impl Effects {
@@ -80,6 +90,7 @@ impl Effects {
         creep: None,
         width: None,
         shape: None,
+        pressure_lag: None,
     };
 
     /// Validate every effect that is on.
@@ -98,6 +109,9 @@ impl Effects {
         }
         if let Some(s) = &self.shape {
             s.validate()?;
+        }
+        if let Some(l) = &self.pressure_lag {
+            l.validate()?;
         }
         Ok(())
     }

@@ -304,10 +304,16 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
             }
         )
     }));
+    let pressure_lag = opt(effects.pressure_lag.map(|l| {
+        format!(
+            "pam_core::effects::PressureLag {{\n        time_constant_s: {},\n    }}",
+            f(l.time_constant_s)
+        )
+    }));
     src.push_str(&format!(
         "\n/// The effects of the model beyond the paper's, identified with it.\n\
          pub const EFFECTS: pam_core::Effects = pam_core::Effects {{\n    \
-         memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n    shape: {shape},\n}};\n"
+         memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n    shape: {shape},\n    pressure_lag: {pressure_lag},\n}};\n"
     ));
     src
 }

@@ -35,11 +35,31 @@ fn runs(mask: &[bool]) -> Vec<(usize, usize)> {
 /// The measured value of what the diagnosis predicts: the contraction, or
 /// on an isometric record the pressure; and its axis label.
 fn measured(r: &DiagnoseReport, s: &crate::record::Sample) -> f64 {
-    if isometric(r) {
+    measured_in(isometric(r), s)
+}
+
+/// The quantity a diagnosis predicts: pressure on an isometric record (its
+/// answer to the held length), contraction otherwise.
+fn measured_in(isometric: bool, s: &crate::record::Sample) -> f64 {
+    if isometric {
         s.pressure_mpa
     } else {
         s.contraction
     }
+}
+
+/// The residual every plot and table shows: model − measured, sample by
+/// sample.
+fn model_minus_measured(
+    isometric: bool,
+    predicted: &[f64],
+    samples: &[crate::record::Sample],
+) -> Vec<f64> {
+    samples
+        .iter()
+        .zip(predicted)
+        .map(|(s, x)| x - measured_in(isometric, s))
+        .collect()
 }
 
 fn isometric(r: &DiagnoseReport) -> bool {
@@ -52,16 +72,8 @@ fn isometric(r: &DiagnoseReport) -> bool {
 /// regime bands along the bottom.
 pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::Result<()> {
     let s = &record.samples;
-    let res_b: Vec<f64> = s
-        .iter()
-        .zip(&r.predicted_base)
-        .map(|(s, x)| x - measured(r, s))
-        .collect();
-    let res_a: Vec<f64> = s
-        .iter()
-        .zip(&r.predicted_after)
-        .map(|(s, x)| x - measured(r, s))
-        .collect();
+    let res_b = model_minus_measured(isometric(r), &r.predicted_base, s);
+    let res_a = model_minus_measured(isometric(r), &r.predicted_after, s);
     let lim = res_b
         .iter()
         .chain(&res_a)
@@ -393,7 +405,23 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
 
 #[cfg(test)]
 mod tests {
-    use super::{runs, shown_block};
+    use super::{model_minus_measured, runs, shown_block};
+    use crate::record::Sample;
+
+    #[test]
+    fn the_residual_is_model_minus_measured_in_the_quantity_predicted() {
+        let s = [Sample {
+            t_s: 0.0,
+            load_n: 100.0,
+            pressure_mpa: 0.3,
+            contraction: 0.1,
+        }];
+        // A model above the measurement has a positive residual.
+        let r = model_minus_measured(false, &[0.12], &s);
+        assert!((r[0] - 0.02).abs() < 1e-12, "{r:?}");
+        let r = model_minus_measured(true, &[0.25], &s);
+        assert!((r[0] + 0.05).abs() < 1e-12, "{r:?}");
+    }
 
     #[test]
     fn the_loops_show_where_the_effects_act() {

@@ -6,7 +6,7 @@ use pam_core::effects::memory::MIN_MERGE_SPAN;
 use pam_core::effects::rate::{MAX_RATE_MPA_PER_S, RATE_EXPONENT_RANGE};
 use pam_core::effects::shape::MAX_SHAPE_SLOPE;
 use pam_core::effects::{
-    ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
+    ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureLag, RateDependence,
 };
 use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
@@ -29,17 +29,30 @@ pub enum EffectKind {
     LoadDependentWidth,
     /// A static curve outside the cubic family ([`ConstraintShape`]).
     ConstraintShape,
+    /// The muscle's pressure lagging the measured one ([`PressureLag`]).
+    PressureLag,
 }
 
 impl EffectKind {
     /// Every candidate, in the order they are tried.
-    pub const ALL: [EffectKind; 5] = [
+    pub const ALL: [EffectKind; 6] = [
         EffectKind::NonLocalMemory,
         EffectKind::RateDependence,
         EffectKind::Creep,
         EffectKind::LoadDependentWidth,
         EffectKind::ConstraintShape,
+        EffectKind::PressureLag,
     ];
+
+    /// Whether the diagnosis offers it on a record: the pressure lag on an
+    /// isometric record only (there the pressure is the answer and the
+    /// force is measured, so a lag of the pressure alone is told apart
+    /// from everything the load does; on an isotonic record it would
+    /// compete with the rate law's loop widening with the pressure's rate,
+    /// which no record here separates from it yet).
+    pub fn offered(self, isometric: bool) -> bool {
+        self != EffectKind::PressureLag || isometric
+    }
 
     /// The name used in reports.
     pub fn name(self) -> &'static str {
@@ -49,6 +62,7 @@ impl EffectKind {
             EffectKind::Creep => "creep",
             EffectKind::LoadDependentWidth => "load_dependent_width",
             EffectKind::ConstraintShape => "constraint_shape",
+            EffectKind::PressureLag => "pressure_lag",
         }
     }
 
@@ -59,6 +73,7 @@ impl EffectKind {
         match self {
             EffectKind::RateDependence => 5,
             EffectKind::ConstraintShape => 8,
+            EffectKind::PressureLag => 1,
             _ => 2,
         }
     }
@@ -70,6 +85,7 @@ impl EffectKind {
         match self {
             EffectKind::RateDependence => 4,
             EffectKind::ConstraintShape => 8,
+            EffectKind::PressureLag => 1,
             _ => 2,
         }
     }
@@ -82,6 +98,8 @@ impl EffectKind {
             EffectKind::Creep => "hold_after_step",
             EffectKind::LoadDependentWidth => "per_load",
             EffectKind::ConstraintShape => "static_shape",
+            // Where the pressure moves fast, the lag's error is largest.
+            EffectKind::PressureLag => "fast_ramp",
         }
     }
 
@@ -121,6 +139,11 @@ impl EffectKind {
             ],
             EffectKind::LoadDependentWidth => vec![vec![logit(1.0 / 4.0), 0.0]],
             EffectKind::ConstraintShape => vec![vec![0.0; 8]],
+            // A line's few milliseconds and a slower answer.
+            EffectKind::PressureLag => vec![
+                vec![PRESSURE_LAG_TIME.theta(0.01)],
+                vec![PRESSURE_LAG_TIME.theta(0.05)],
+            ],
         }
     }
 
@@ -194,6 +217,11 @@ impl EffectKind {
                     ..e.shape.unwrap_or(ConstraintShape::NEUTRAL)
                 })
             }
+            EffectKind::PressureLag => {
+                e.pressure_lag = Some(PressureLag {
+                    time_constant_s: PRESSURE_LAG_TIME.value(t(0)) as f32,
+                })
+            }
         }
         e
     }
@@ -206,6 +234,7 @@ impl EffectKind {
             EffectKind::Creep => e.creep.is_some(),
             EffectKind::LoadDependentWidth => e.width.is_some(),
             EffectKind::ConstraintShape => e.shape.is_some(),
+            EffectKind::PressureLag => e.pressure_lag.is_some(),
         }
     }
 }
@@ -259,6 +288,14 @@ const MEMORY_SHAPE: LogRange = LogRange {
     lo: 0.05,
     ratio: 1000.0,
     hi: 50.0,
+};
+
+/// The pressure lag's time constant, s: logarithmic over pam-core's
+/// range, `[0.001, 0.5]`.
+const PRESSURE_LAG_TIME: LogRange = LogRange {
+    lo: PressureLag::MIN_TIME_CONSTANT_S as f64,
+    ratio: (PressureLag::MAX_TIME_CONSTANT_S / PressureLag::MIN_TIME_CONSTANT_S) as f64,
+    hi: PressureLag::MAX_TIME_CONSTANT_S as f64,
 };
 
 /// The memory's merge span: logarithmic over `[MIN_MERGE_SPAN, 1]`.

@@ -85,6 +85,7 @@ pub struct LoadError {
 }
 
 /// What is shared by every evaluation of one record.
+#[derive(Clone)]
 pub(super) struct Setup<'a> {
     pub(super) samples: &'a [Sample],
     pub(super) coeffs: Coeffs,
@@ -350,25 +351,29 @@ impl Setup<'_> {
 pub const PRESSURE_WEIGHT_SPREAD: f64 = 20.0;
 
 /// An isometric record's residual in pressure, to first order: each
-/// sample's contraction residual times the slope `|dp/dx|` of `coeffs`'
-/// static model at the measured contraction, load and branch (central
+/// sample's contraction residual times the slope `|dp/dx|` of the static
+/// model (`coeffs` with its static `shape`, when it has one) at the
+/// measured contraction, load and branch (central
 /// difference over 1e-4 of rest length, the chip's `f32` evaluation,
 /// [`ModelCache`](crate::evaluate::errors::ModelCache)). The held length is
 /// the input of an isometric test and the pressure its answer: a model
 /// error in contraction where the curve is steep is a large pressure
 /// error, where it is flat a small one, and the diagnosis weighs them as
-/// the user's pressure does. Fixed per record (the base model's slopes),
-/// so every candidate is simulated once per evaluation, as on an isotonic
-/// record; the exact pressure (`pressure_to_reach`) judges the result on
+/// the user's pressure does. Fixed per model the candidates are fitted on
+/// (the base model's slopes, or a path's once it carries a static shape:
+/// the shape moves the slope most where the curve is steep), so every
+/// candidate is simulated once per evaluation, as on an isotonic record;
+/// the exact pressure (`pressure_to_reach`) judges the result on
 /// `--validate`. Bounded to [`PRESSURE_WEIGHT_SPREAD`] times the median
 /// either way: at a stroke end the slope is 0 or without bound.
 pub fn pressure_weights(
     coeffs: &Coeffs,
+    shape: Option<&pam_core::effects::ConstraintShape>,
     samples: &[Sample],
     branches: &[Branch],
     excluded: &[bool],
 ) -> Vec<f64> {
-    let mut cache = crate::evaluate::errors::ModelCache::new(coeffs, None);
+    let mut cache = crate::evaluate::errors::ModelCache::new(coeffs, shape);
     let h = 1e-4f32;
     let raw: Vec<f64> = samples
         .iter()
@@ -398,4 +403,63 @@ pub fn pressure_weights(
     raw.iter()
         .map(|w| if w.is_finite() { w.clamp(lo, hi) } else { hi })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::evaluate::errors::ModelCache;
+    use pam_core::effects::shape::table::{TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS};
+    use pam_core::effects::{ConstraintShape, StrokeTable};
+    use pam_core::Params;
+
+    #[test]
+    fn the_pressure_weights_are_the_slopes_of_the_model_with_its_static_shape() {
+        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+        // A stroke table that bends the curve at every load, most near
+        // the stroke's root.
+        let mut knots = [[0.0; TABLE_KNOTS]; TABLE_LOADS];
+        for node in &mut knots {
+            for (j, v) in node.iter_mut().enumerate() {
+                let u = (j + 1) as f32 / TABLE_SEGMENTS as f32;
+                *v = u + 0.9 * u * (1.0 - u);
+            }
+        }
+        let shape = ConstraintShape {
+            table: StrokeTable { knots },
+            ..ConstraintShape::NEUTRAL
+        };
+        shape.validate().unwrap();
+        let m = coeffs.load_model_clamped(200.0);
+        let (x0, x1) = (m.root_contraction(), m.max_contraction());
+        let samples: Vec<Sample> = [0.1f32, 0.5, 0.9]
+            .iter()
+            .map(|f| Sample {
+                t_s: 0.0,
+                load_n: 200.0,
+                pressure_mpa: 0.3,
+                contraction: f64::from(x0 + f * (x1 - x0)),
+            })
+            .collect();
+        let branches = [Branch::Contraction; 3];
+        let excluded = [false; 3];
+        let plain = pressure_weights(&coeffs, None, &samples, &branches, &excluded);
+        let shaped = pressure_weights(&coeffs, Some(&shape), &samples, &branches, &excluded);
+        // Near the root the table changes the slope the residual is
+        // weighed by ...
+        assert!(
+            (shaped[0] / plain[0] - 1.0).abs() > 0.2,
+            "{plain:?} {shaped:?}"
+        );
+        // ... and each weight is the shaped model's own |dp/dx|.
+        let mut cache = ModelCache::new(&coeffs, Some(&shape));
+        let h = 1e-4f32;
+        for (s, w) in samples.iter().zip(&shaped) {
+            let x = s.contraction as f32;
+            let up = cache.pressure_mpa(x + h, 200.0, Branch::Contraction);
+            let down = cache.pressure_mpa(x - h, 200.0, Branch::Contraction);
+            let slope = f64::from((up - down).abs()) / (2.0 * f64::from(h));
+            assert!((w - slope).abs() <= 1e-9 * slope.max(1.0), "{w} {slope}");
+        }
+    }
 }

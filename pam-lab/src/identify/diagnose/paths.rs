@@ -86,6 +86,8 @@ fn candidates_on(
     cfg: &DiagnoseConfig,
     progress: &dyn Fn(&str),
 ) -> Vec<CandidateResult> {
+    let reweighted = on_path_slopes(setup, path);
+    let setup = reweighted.as_ref().unwrap_or(setup);
     if !path.added.is_empty() {
         progress(&format!("refitting the base with {}", path.label()));
         let (p, c) = refit_base(
@@ -117,10 +119,37 @@ fn candidates_on(
         .collect()
 }
 
-fn remaining(path: &Path) -> Vec<EffectKind> {
+/// On an isometric record, the setup whose first-order pressure weights
+/// are the slopes of `path`'s own static model, when its static shape is
+/// not the base's ([`super::evaluate::pressure_weights`]): a stroke table
+/// steepens the curve near the stroke's root several times over, and a
+/// candidate fitted on the base's slopes there is fitted on the wrong
+/// residual. `None`: the setup's weights are the path's.
+fn on_path_slopes<'a>(setup: &Setup<'a>, path: &Path) -> Option<Setup<'a>> {
+    setup.pressure_weight.as_ref()?;
+    if path.effects.shape == setup.base_effects.shape {
+        return None;
+    }
+    let weights = super::evaluate::pressure_weights(
+        &path.coeffs,
+        path.effects.shape.as_ref(),
+        setup.samples,
+        &setup.branches,
+        &setup.excluded,
+    );
+    Some(Setup {
+        pressure_weight: Some(weights),
+        ..setup.clone()
+    })
+}
+
+/// The candidates not on `path` yet that the record's kind is offered
+/// ([`EffectKind::offered`]).
+fn remaining(setup: &Setup<'_>, path: &Path) -> Vec<EffectKind> {
+    let isometric = setup.pressure_weight.is_some();
     EffectKind::ALL
         .into_iter()
-        .filter(|k| !k.is_on(&path.effects))
+        .filter(|k| k.offered(isometric) && !k.is_on(&path.effects))
         .collect()
 }
 
@@ -141,7 +170,7 @@ fn follow(
     progress: &dyn Fn(&str),
 ) -> Path {
     while path.added.len() < cfg.max_effects {
-        let kinds = remaining(&path);
+        let kinds = remaining(setup, &path);
         if kinds.is_empty() {
             break;
         }
@@ -180,7 +209,7 @@ pub(super) fn search(
     }
     let mut start = base;
     let rms_start = start.errors.rms_heldout;
-    let kinds = remaining(&start);
+    let kinds = remaining(setup, &start);
     let first = candidates_on(setup, &mut start, &kinds, cfg, progress);
     let mut earners: Vec<&CandidateResult> = first.iter().filter(|c| c.earned).collect();
     earners.sort_by(|a, b| b.located_gain().total_cmp(&a.located_gain()));

@@ -132,6 +132,11 @@ pub struct DiagnoseReport {
     /// (the static shape's table variant is refitted on the whole record).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub final_refit: Option<String>,
+    /// On an isometric record: how much later the final model's pressure
+    /// follows the measured pressure best ([`super::lag`]), over every
+    /// sample judged.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pressure_lag: Option<super::lag::PressureLag>,
     /// The final model's effects.
     pub effects: Effects,
     /// The effects the base model carries (none: the static shape is a
@@ -321,6 +326,13 @@ pub fn summary(r: &DiagnoseReport) -> String {
         s.push_str(note);
         s.push('\n');
     }
+    if let Some(lag) = &r.pressure_lag {
+        s.push_str(&lag_line(
+            lag,
+            r.min_improvement,
+            r.effects.pressure_lag.is_some(),
+        ));
+    }
     if r.pmax_at_ceiling {
         s.push_str(&format!(
             "Pmax held at the record's top: refitted, it went to its ceiling ({:.2}x the top), so the record does not say where the loop closes\n",
@@ -357,4 +369,27 @@ pub fn summary(r: &DiagnoseReport) -> String {
         s.push_str(&format!("warning: {w}\n"));
     }
     s
+}
+
+/// The summary's line on the lag between the measured pressure and the
+/// model's ([`super::lag`]); a hint when shifting removes at least
+/// `min_cut` of the RMS and the model has no pressure lag.
+fn lag_line(lag: &super::lag::PressureLag, min_cut: f64, modelled: bool) -> String {
+    let ms = 1000.0 * lag.lag_s;
+    let mut line = format!(
+        "timing: the model's pressure matches the pressure measured {ms:.0} ms earlier best \
+         (RMS {:.5} -> {:.5} MPa, {:.1} % lower, over {} samples)",
+        lag.rms_unshifted_mpa,
+        lag.rms_at_lag_mpa,
+        100.0 * lag.cut(),
+        lag.samples
+    );
+    if !modelled && lag.lag_s > 0.0 && lag.cut() >= min_cut {
+        line.push_str(
+            ": the muscle answers its pressure late (a tube, the bladder's volume, a sensor's \
+             filter), which the model written leaves out",
+        );
+    }
+    line.push('\n');
+    line
 }
