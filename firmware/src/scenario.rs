@@ -372,7 +372,8 @@ mod tests {
     #[test]
     fn each_effects_feedforward_tracks_its_plant_no_worse_than_the_paper_model() {
         use pam_core::effects::{
-            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, RateDependence,
+            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureLag,
+            RateDependence,
         };
         use pam_core::Effects;
         let none = Effects::NONE;
@@ -422,6 +423,15 @@ mod tests {
                     ..none
                 },
             ),
+            (
+                "pressure lag",
+                Effects {
+                    pressure_lag: Some(PressureLag {
+                        time_constant_s: 0.02,
+                    }),
+                    ..none
+                },
+            ),
         ];
         let all = cases.iter().fold(none, |acc, (_, e)| Effects {
             memory: acc.memory.or(e.memory),
@@ -433,9 +443,10 @@ mod tests {
         });
         let paper = blob();
         for (name, effects) in cases.iter().copied().chain([("all", all)]) {
-            let diagnosed = pam_core::blob::encode_v2(&Params::DEFAULT, &effects);
+            let (bytes, len) = pam_core::blob::encode_model(&Params::DEFAULT, &effects);
+            let diagnosed = &bytes[..len];
             let with =
-                run_with_plant_effects(&diagnosed, Feedforward::Hysteresis, effects).unwrap();
+                run_with_plant_effects(diagnosed, Feedforward::Hysteresis, effects).unwrap();
             let without = run_with_plant_effects(&paper, Feedforward::Hysteresis, effects).unwrap();
             println!(
                 "{name}: rms {:.5} max {:.5} (paper-only rms {:.5} max {:.5})",
