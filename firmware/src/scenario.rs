@@ -372,8 +372,7 @@ mod tests {
     #[test]
     fn each_effects_feedforward_tracks_its_plant_no_worse_than_the_paper_model() {
         use pam_core::effects::{
-            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureLag,
-            RateDependence,
+            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureLag, RateDependence,
         };
         use pam_core::Effects;
         let none = Effects::NONE;
@@ -445,8 +444,7 @@ mod tests {
         for (name, effects) in cases.iter().copied().chain([("all", all)]) {
             let (bytes, len) = pam_core::blob::encode_model(&Params::DEFAULT, &effects);
             let diagnosed = &bytes[..len];
-            let with =
-                run_with_plant_effects(diagnosed, Feedforward::Hysteresis, effects).unwrap();
+            let with = run_with_plant_effects(diagnosed, Feedforward::Hysteresis, effects).unwrap();
             let without = run_with_plant_effects(&paper, Feedforward::Hysteresis, effects).unwrap();
             println!(
                 "{name}: rms {:.5} max {:.5} (paper-only rms {:.5} max {:.5})",

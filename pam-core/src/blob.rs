@@ -367,9 +367,14 @@ fn write_v2_part(
 pub fn encode_v2(params: &Params, effects: &Effects) -> [u8; BLOB_V2_LEN] {
     let mut out = [0u8; BLOB_V2_LEN];
     let body = write_v2_part(&mut out, params, effects, BLOB_VERSION_V2, PAYLOAD_V2_LEN);
-    let crc = crc32(&out[..body]);
-    out[body..].copy_from_slice(&crc.to_le_bytes());
+    seal(&mut out, body);
     out
+}
+
+/// Write the CRC-32 of `out[..body]` after it (the blob's last 4 bytes).
+fn seal(out: &mut [u8], body: usize) {
+    let crc = crc32(&out[..body]);
+    out[body..body + 4].copy_from_slice(&crc.to_le_bytes());
 }
 
 /// Encode `params` and `effects` in format version 3: version 2 and the
@@ -377,8 +382,7 @@ pub fn encode_v2(params: &Params, effects: &Effects) -> [u8; BLOB_V2_LEN] {
 pub fn encode_v3(params: &Params, effects: &Effects) -> [u8; BLOB_V3_LEN] {
     let mut out = [0u8; BLOB_V3_LEN];
     let at = write_v3_part(&mut out, params, effects, BLOB_VERSION_V3, PAYLOAD_V3_LEN);
-    let crc = crc32(&out[..at]);
-    out[at..].copy_from_slice(&crc.to_le_bytes());
+    seal(&mut out, at);
     out
 }
 
@@ -410,8 +414,7 @@ pub fn encode_v4(params: &Params, effects: &Effects) -> [u8; BLOB_V4_LEN] {
     let tau = effects.pressure_lag.map_or(0.0, |l| l.time_constant_s);
     out[at..at + 4].copy_from_slice(&tau.to_le_bytes());
     at += 4;
-    let crc = crc32(&out[..at]);
-    out[at..].copy_from_slice(&crc.to_le_bytes());
+    seal(&mut out, at);
     out
 }
 

@@ -462,9 +462,9 @@ fn a_pressure_in_psi_is_named() {
     assert!(stderr.contains("psi (multiply by 0.006895)"), "{stderr}");
 }
 
-#[test]
-fn units_that_look_wrong_are_warned() {
-    let dir = tempfile::tempdir().unwrap();
+/// A generated record written with its time in milliseconds and its
+/// pressure times `pressure_scale` (10: bar), in `dir`.
+fn mis_scaled_record(dir: &std::path::Path, pressure_scale: f64) -> std::path::PathBuf {
     let rec = generate(
         &Params::DEFAULT,
         &Protocol::quick(&[100.0, 300.0]),
@@ -472,19 +472,26 @@ fn units_that_look_wrong_are_warned() {
         0.0008,
         5,
     );
-    // Pressure in bar, time in milliseconds.
     let mut text = String::from("t_s,load_n,pressure_mpa,contraction\n");
     for s in &rec.samples {
         text.push_str(&format!(
-            "{:.1},{},{:.4},{:.5}\n",
+            "{:.1},{},{:.5},{:.5}\n",
             s.t_s * 1000.0,
             s.load_n,
-            s.pressure_mpa * 10.0,
+            s.pressure_mpa * pressure_scale,
             s.contraction
         ));
     }
-    let data = dir.path().join("units.csv");
+    let data = dir.join("units.csv");
     std::fs::write(&data, text).unwrap();
+    data
+}
+
+#[test]
+fn units_that_look_wrong_are_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    // Pressure in bar, time in milliseconds.
+    let data = mis_scaled_record(dir.path(), 10.0);
     let out = dir.path().join("out");
     let (ok, _, stderr) = pam_lab(&[
         "fit",
@@ -510,25 +517,7 @@ fn diagnose_warns_of_a_time_column_in_milliseconds() {
     // The effects' time constants are in seconds: a record logged in ms
     // would be diagnosed 1000× too slow (a rate law read as memory).
     let dir = tempfile::tempdir().unwrap();
-    let rec = generate(
-        &Params::DEFAULT,
-        &Protocol::quick(&[100.0, 300.0]),
-        0.001,
-        0.0008,
-        5,
-    );
-    let mut text = String::from("t_s,load_n,pressure_mpa,contraction\n");
-    for s in &rec.samples {
-        text.push_str(&format!(
-            "{:.1},{},{:.5},{:.5}\n",
-            s.t_s * 1000.0,
-            s.load_n,
-            s.pressure_mpa,
-            s.contraction
-        ));
-    }
-    let data = dir.path().join("ms.csv");
-    std::fs::write(&data, text).unwrap();
+    let data = mis_scaled_record(dir.path(), 1.0);
     let out = dir.path().join("out");
     let (_, _, stderr) = pam_lab(&[
         "diagnose",

@@ -61,11 +61,7 @@ impl Creep {
     /// zero-order-hold step of `τ·ẏ = u − y`; 0 (the lag held) for a `dt_s`
     /// outside `(0, 10]` s. A controller with a fixed period computes it once.
     pub fn lag_gain(&self, dt_s: f32) -> f32 {
-        if dt_s > 0.0 && dt_s <= 10.0 {
-            1.0 - libm::expf(-dt_s / self.time_constant_s)
-        } else {
-            0.0
-        }
+        super::first_order_gain(dt_s, self.time_constant_s)
     }
 
     /// [`Self::step`] with the lag's gain given ([`Self::lag_gain`]).
