@@ -256,14 +256,15 @@ fn main() -> ! {
     let named = |on: bool, name: &'static str| if on { name } else { "" };
     log!(
         info,
-        "boot: coefficient blob accepted ({} bytes, version {}{}{}{}{}{})",
+        "boot: coefficient blob accepted ({} bytes, version {}{}{}{}{}{}{})",
         blob.len(),
         blob.get(4).copied().unwrap_or(0),
         named(effects.memory.is_some(), ", non-local memory"),
         named(effects.rate.is_some(), ", rate dependence"),
         named(effects.creep.is_some(), ", creep"),
         named(effects.width.is_some(), ", load-dependent width"),
-        named(effects.shape.is_some(), ", constraint shape")
+        named(effects.shape.is_some(), ", constraint shape"),
+        named(effects.pressure_lag.is_some(), ", pressure lag")
     );
     #[cfg(feature = "qemu")]
     if cfg!(feature = "qemu-panic") || PENDED.is_some() {
