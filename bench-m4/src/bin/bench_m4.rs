@@ -600,12 +600,14 @@ fn main() -> ! {
         shape: shape_memory.shape,
         ..Effects::NONE
     };
+    // The pressure lag (blob version 4) is not in these rows yet.
     let all = Effects {
         memory: memory_only.memory,
         rate: rate.rate,
         creep: creep.creep,
         width: width.width,
         shape: shape.shape,
+        pressure_lag: None,
     };
     let feedforwards = [
         ("off", Feedforward::Off),
