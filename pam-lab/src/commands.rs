@@ -301,7 +301,7 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
 pub fn diagnose_record(
     record: &Record,
     cfg: &DiagnoseConfig,
-    progress: &dyn Fn(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Result<DiagnoseReport, DiagnoseError> {
     cfg.fit.validate()?;
     diagnose::diagnose_with_progress(record, cfg, progress)

@@ -63,6 +63,7 @@ mod candidates;
 mod config;
 mod evaluate;
 pub mod lag;
+mod parallel;
 mod paths;
 mod prepare;
 mod refit;
@@ -122,7 +123,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
 pub fn diagnose_with_progress(
     record: &Record,
     cfg: &DiagnoseConfig,
-    progress: &dyn Fn(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Result<DiagnoseReport, DiagnoseError> {
     let samples = &record.samples;
     if samples.len() < 100 {
@@ -187,26 +188,39 @@ pub fn diagnose_with_progress(
     // systematic misfit is the effect's, not the curve's). The shape is a
     // candidate like the others.
     fit_cfg.static_shape = false;
+    // Three independent fits, side by side: the paper's model; fit's
+    // static shape on the same training part, as fit keeps it (its BIC and
+    // its own held-out cycles: a table that stands in for a creep or a rate
+    // law fails there), the table variant of the `constraint_shape`
+    // candidate, which competes with the others; and fit's static model on
+    // the whole record, which is written when that variant is chosen
+    // ([`whole_record_static_model`]).
+    let with_table = cfg.fit.static_shape;
     progress(&format!(
-        "fitting the paper's model on {} training samples",
-        train_record.samples.len()
+        "fitting the paper's model on {} training samples{}",
+        train_record.samples.len(),
+        if with_table {
+            ", and beside it the static shape fit would keep on the training part and on the whole record"
+        } else {
+            ""
+        }
     ));
-    let fit = crate::identify::fit::fit(&train_record, &fit_cfg)?;
-    // fit's static shape on the same training part, as fit keeps it (its
-    // BIC and its own held-out cycles: a table that stands in for a creep
-    // or a rate law fails there): the table variant of the
-    // `constraint_shape` candidate, which competes with the others.
-    let stroke_table = if cfg.fit.static_shape {
-        progress("fitting the static shape fit would keep on the training part");
-        let mut table_cfg = fit_cfg.clone();
-        table_cfg.static_shape = true;
-        table_cfg.holdout = FitConfig::default().holdout;
-        crate::identify::fit::fit(&train_record, &table_cfg)
-            .ok()
-            .and_then(|f| f.constraint_shape.map(|shape| (f.params, shape)))
-    } else {
-        None
-    };
+    let (fit, stroke_table, whole_static) = std::thread::scope(|scope| {
+        let table = with_table.then(|| {
+            scope.spawn(|| {
+                let mut table_cfg = fit_cfg.clone();
+                table_cfg.static_shape = true;
+                table_cfg.holdout = FitConfig::default().holdout;
+                crate::identify::fit::fit(&train_record, &table_cfg)
+                    .ok()
+                    .and_then(|f| f.constraint_shape.map(|shape| (f.params, shape)))
+            })
+        });
+        let whole = with_table.then(|| scope.spawn(|| whole_record_static_model(record, &fit_cfg)));
+        let fit = crate::identify::fit::fit(&train_record, &fit_cfg);
+        (fit, table.and_then(joined), whole.and_then(joined))
+    });
+    let fit = fit?;
 
     // The held-out blocks may go beyond the training loads (the examples'
     // random loads reach 350 N, the training blocks 300 N): widen the
@@ -374,8 +388,7 @@ pub fn diagnose_with_progress(
                 ..setup.base_effects
             };
     let whole = if table_only {
-        progress("fitting the static shape chosen on the whole record");
-        whole_record_static_model(record, &fit_cfg).map(|(params, coeffs, shape, samples)| {
+        whole_static.map(|(params, coeffs, shape, samples)| {
             let effects = Effects {
                 shape: Some(shape),
                 ..current
@@ -478,6 +491,14 @@ pub fn diagnose_with_progress(
     })
 }
 
+/// What a scoped thread returned (its panic, should it panic, raised
+/// again here).
+fn joined<T>(handle: std::thread::ScopedJoinHandle<'_, T>) -> T {
+    handle
+        .join()
+        .unwrap_or_else(|e| std::panic::resume_unwind(e))
+}
+
 /// fit's static model (the paper's model and the stroke table) on the whole
 /// `record`, with `fit_cfg`'s options and nothing held out: its
 /// parameters, coefficients, shape and training samples; `None` when fit
@@ -536,7 +557,7 @@ fn search(
     setup: &Setup<'_>,
     (params, coeffs): (pam_core::Params, Coeffs),
     cfg: &DiagnoseConfig,
-    progress: &dyn Fn(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Outcome {
     let (base_errors, _) = setup.errors(&coeffs, setup.base_effects, 0);
     let (chosen, paths) = paths::search(

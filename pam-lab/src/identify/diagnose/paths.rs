@@ -84,7 +84,7 @@ fn candidates_on(
     path: &mut Path,
     kinds: &[EffectKind],
     cfg: &DiagnoseConfig,
-    progress: &dyn Fn(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Vec<CandidateResult> {
     let reweighted = on_path_slopes(setup, path);
     let setup = reweighted.as_ref().unwrap_or(setup);
@@ -102,21 +102,19 @@ fn candidates_on(
             (path.params, path.coeffs, path.errors) = (p, c, e);
         }
     }
-    kinds
-        .iter()
-        .map(|&kind| {
-            progress(&format!("on {}: fitting {}", path.label(), kind.name()));
-            evaluate_candidate(
-                setup,
-                kind,
-                (path.params, path.coeffs),
-                path.effects,
-                &path.errors,
-                path.n_params,
-                cfg,
-            )
-        })
-        .collect()
+    let path = &*path;
+    super::parallel::map(kinds, |&kind| {
+        progress(&format!("on {}: fitting {}", path.label(), kind.name()));
+        evaluate_candidate(
+            setup,
+            kind,
+            (path.params, path.coeffs),
+            path.effects,
+            &path.errors,
+            path.n_params,
+            cfg,
+        )
+    })
 }
 
 /// On an isometric record, the setup whose first-order pressure weights
@@ -167,7 +165,7 @@ fn follow(
     setup: &Setup<'_>,
     mut path: Path,
     cfg: &DiagnoseConfig,
-    progress: &dyn Fn(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Path {
     while path.added.len() < cfg.max_effects {
         let kinds = remaining(setup, &path);
@@ -202,7 +200,7 @@ pub(super) fn search(
     setup: &Setup<'_>,
     base: Path,
     cfg: &DiagnoseConfig,
-    progress: &dyn Fn(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> (Path, Vec<PathSummary>) {
     if cfg.max_effects == 0 {
         return (base, Vec::new());
@@ -224,14 +222,12 @@ pub(super) fn search(
         path.rounds.push(round_one(None));
         return (path, Vec::new());
     }
-    let followed: Vec<Path> = earners
-        .iter()
-        .map(|c| {
-            let mut path = start.with(c);
-            path.rounds.push(round_one(Some(c.name)));
-            follow(setup, path, cfg, progress)
-        })
-        .collect();
+    // The paths are independent: followed side by side.
+    let followed: Vec<Path> = super::parallel::map(&earners, |c| {
+        let mut path = start.with(c);
+        path.rounds.push(round_one(Some(c.name)));
+        follow(setup, path, cfg, progress)
+    });
     if followed.len() == 1 {
         let path = followed.into_iter().next().unwrap_or(start);
         return (path, Vec::new());
