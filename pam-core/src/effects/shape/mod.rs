@@ -328,6 +328,10 @@ pub struct ShapeInverse {
     inv_span: f32,
     /// The table at this load's knots, when it is not the identity.
     table: Option<[f32; table::TABLE_KNOTS]>,
+    /// The polynomial part is the identity (all four terms zero, as in
+    /// the stroke table `pam-lab fit` writes): its map is `u` and its
+    /// inverse the target, bit for bit, so both are skipped.
+    bend_is_identity: bool,
 }
 
 impl ShapeInverse {
@@ -364,6 +368,10 @@ impl ShapeInverse {
             hi_end,
             inv_span: if span > 0.0 { 1.0 / span } else { 0.0 },
             table: None,
+            bend_is_identity: b == 0.0
+                && t == 0.0
+                && bend.root_shift == 0.0
+                && bend.end_shift == 0.0,
         }
     }
 
@@ -386,7 +394,12 @@ impl ShapeInverse {
             Some(k) => table::map(k, u),
             None => u,
         };
-        r + s * clamp(self.bend.map_fraction(u), self.lo_end, self.hi_end)
+        let v = if self.bend_is_identity {
+            u
+        } else {
+            clamp(self.bend.map_fraction(u), self.lo_end, self.hi_end)
+        };
+        r + s * v
     }
 
     /// [`ConstraintShape::model_contraction`]: [`SHAPE_INVERSE_STEPS`]
@@ -407,6 +420,23 @@ impl ShapeInverse {
         } else {
             lo_end
         };
+        let u = if self.bend_is_identity {
+            target
+        } else {
+            self.bend_inverse(target)
+        };
+        let u = match &self.table {
+            Some(k) => table::inverse(k, u),
+            None => u,
+        };
+        clamp(r + s * u, r, rx)
+    }
+
+    /// The polynomial part's inverse: the `u` in `[0, 1]` whose map is
+    /// `target` (in `[lo_end, hi_end]`), by [`SHAPE_INVERSE_STEPS`]
+    /// bracketed Newton steps.
+    fn bend_inverse(&self, target: f32) -> f32 {
+        let lo_end = self.lo_end;
         let (d, bt, t2) = (self.d, self.bulge_minus_tilt, self.two_tilt);
         let (c1, c2x2, c3x3) = (self.c1, self.c2x2, self.c3x3);
         // The map's constant term less the target, once.
@@ -433,11 +463,7 @@ impl ShapeInverse {
                 0.5 * (lo + hi)
             };
         }
-        let u = match &self.table {
-            Some(k) => table::inverse(k, u),
-            None => u,
-        };
-        clamp(r + s * u, r, rx)
+        u
     }
 }
 
@@ -458,6 +484,61 @@ mod tests {
             }
         }
         0.5 * (lo + hi)
+    }
+
+    #[test]
+    fn a_table_alone_skips_the_polynomial_bit_for_bit() {
+        // fit's stroke table with the polynomial part at zero: the map and
+        // the inverse without the polynomial's steps are the ones with
+        // them, to the bit.
+        let m = model();
+        let mut knots = [[0.0f32; table::TABLE_KNOTS]; table::TABLE_LOADS];
+        for (i, row) in knots.iter_mut().enumerate() {
+            for (j, k) in row.iter_mut().enumerate() {
+                let u = (j + 1) as f32 / table::TABLE_SEGMENTS as f32;
+                *k = u + 0.08 * (i as f32 + 1.0) * u * (1.0 - u) * (1.0 - 0.3 * u);
+            }
+        }
+        let shape = ConstraintShape {
+            table: StrokeTable { knots },
+            ..ConstraintShape::NEUTRAL
+        };
+        shape.validate().unwrap();
+        let p = Params::DEFAULT;
+        for load in [p.min_load_n, 250.0, p.max_load_n] {
+            let fast = shape.inverse_at_load(&p, load);
+            assert!(fast.bend_is_identity && fast.table.is_some());
+            let slow = ShapeInverse {
+                bend_is_identity: false,
+                ..fast
+            };
+            let (r, rx) = (m.root_contraction(), m.max_contraction());
+            for i in 0..=400 {
+                let x = r - 0.01 + (rx - r + 0.02) * i as f32 / 400.0;
+                assert_eq!(
+                    fast.apply(&m, x).to_bits(),
+                    slow.apply(&m, x).to_bits(),
+                    "map at {x}"
+                );
+                assert_eq!(
+                    fast.model_contraction(&m, x).to_bits(),
+                    slow.model_contraction(&m, x).to_bits(),
+                    "inverse at {x}"
+                );
+            }
+            for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+                assert_eq!(
+                    fast.model_contraction(&m, x).to_bits(),
+                    slow.model_contraction(&m, x).to_bits()
+                );
+            }
+        }
+        // Any polynomial term turns the steps back on.
+        let bent = ConstraintShape {
+            end_shift: -0.01,
+            ..shape
+        };
+        assert!(!bent.inverse_at_load(&p, p.min_load_n).bend_is_identity);
     }
 
     #[test]
