@@ -182,8 +182,6 @@ def readme_block(table):
 
 old = committed_sections()
 festo = festo_table()
-if festo is not None:
-    readme_block(festo)
 sections = [
     (
         "## The repository's examples",
@@ -209,6 +207,10 @@ sections = [
     ("## Real muscles: the Festo 10 mm set", festo),
     ("## diagnose on the hidden plants", hidden_tables()),
 ]
+# Every section is made before anything is written: a failure leaves the
+# README and MEASURED.md as they were.
+if festo is not None:
+    readme_block(festo)
 print("# pam-lab: measured")
 print()
 print(
