@@ -218,7 +218,11 @@ pub fn diagnose_with_progress(
         });
         let whole = with_table.then(|| scope.spawn(|| whole_record_static_model(record, &fit_cfg)));
         let fit = crate::identify::fit::fit(&train_record, &fit_cfg);
-        (fit, table.and_then(joined), whole.and_then(joined))
+        (
+            fit,
+            table.and_then(parallel::joined),
+            whole.and_then(parallel::joined),
+        )
     });
     let fit = fit?;
 
@@ -493,14 +497,6 @@ pub fn diagnose_with_progress(
         heldout: setup.heldout,
         regimes: setup.regimes,
     })
-}
-
-/// What a scoped thread returned (its panic, should it panic, raised
-/// again here).
-fn joined<T>(handle: std::thread::ScopedJoinHandle<'_, T>) -> T {
-    handle
-        .join()
-        .unwrap_or_else(|e| std::panic::resume_unwind(e))
 }
 
 /// fit's static model (the paper's model and the stroke table) on the whole
