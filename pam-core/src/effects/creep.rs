@@ -61,7 +61,7 @@ impl Creep {
     /// zero-order-hold step of `τ·ẏ = u − y`; 0 (the lag held) for a `dt_s`
     /// outside `(0, 10]` s. A controller with a fixed period computes it once.
     pub fn lag_gain(&self, dt_s: f32) -> f32 {
-        super::first_order_gain(dt_s, self.time_constant_s)
+        super::first_order::first_order_gain(dt_s, self.time_constant_s)
     }
 
     /// [`Self::step`] with the lag's gain given ([`Self::lag_gain`]).

@@ -37,6 +37,7 @@
 //! ```
 
 pub mod creep;
+pub mod first_order;
 pub mod memory;
 pub mod offset;
 pub mod pressure_lag;
@@ -45,6 +46,7 @@ pub mod shape;
 pub mod width;
 
 pub use creep::{Creep, CreepState};
+pub use first_order::first_order_gain;
 pub use memory::{NonLocalMemory, Reversal, ReversalStack};
 pub use offset::{branch_contraction, MAX_OFFSET_SCALE, SCALED_INVERSE_STEPS};
 pub use pressure_lag::{PressureLag, PressureLagState};
@@ -57,17 +59,6 @@ use crate::error::Error;
 /// Largest sample interval the time-dependent effects integrate over, s; a
 /// longer gap (or a non-finite or backwards time) holds their state.
 pub const MAX_STEP_S: f32 = 1.0;
-
-/// The gain of a first-order lag `τ·ẏ = u − y` over one step of `dt_s`:
-/// `1 − e^(−dt/τ)`, the exact zero-order-hold step; 0 (the lag held) for a
-/// `dt_s` outside `(0, 10]` s. Creep's and the pressure lag's.
-pub fn first_order_gain(dt_s: f32, time_constant_s: f32) -> f32 {
-    if dt_s > 0.0 && dt_s <= 10.0 {
-        1.0 - libm::expf(-dt_s / time_constant_s)
-    } else {
-        0.0
-    }
-}
 
 /// Which effects a [`crate::Simulator`] runs, with their parameters (`None`: off).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]

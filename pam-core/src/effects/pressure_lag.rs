@@ -56,7 +56,7 @@ impl PressureLag {
     /// zero-order-hold step; 0 (the lag held) for a `dt_s` outside
     /// `(0, 10]` s. A controller with a fixed period computes it once.
     pub fn lag_gain(&self, dt_s: f32) -> f32 {
-        super::first_order_gain(dt_s, self.time_constant_s)
+        super::first_order::first_order_gain(dt_s, self.time_constant_s)
     }
 
     /// Advance by `dt_s` with the measured pressure `pressure_mpa` and

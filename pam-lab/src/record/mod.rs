@@ -37,6 +37,13 @@ pub const MAX_PRESSURE_MPA: f64 = 10.0;
 /// Highest load accepted, N. A muscle only pulls, so loads are `>= 0`.
 pub const MAX_LOAD_N: f64 = 100_000.0;
 
+/// Most samples a record may have (a 2-hour test at 100 Hz is 720 000).
+/// Longer records are refused, not read into memory without bound:
+/// decimate them first.
+pub const MAX_ROWS: usize = 1_000_000;
+/// Most bytes a record file may have, 64 MiB.
+pub const MAX_BYTES: u64 = 64 << 20;
+
 /// One measurement.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Sample {

@@ -6,13 +6,6 @@ use std::path::Path;
 
 use super::*;
 
-/// Most samples a record may have (a 2-hour test at 100 Hz is 720 000).
-/// Longer records are refused, not read into memory without bound:
-/// decimate them first.
-pub const MAX_ROWS: usize = 1_000_000;
-/// Most bytes a record file may have, 64 MiB.
-pub const MAX_BYTES: u64 = 64 << 20;
-
 /// Header names that carry a wrong unit, and what to do.
 const WRONG_UNITS: [(&str, &str); 14] = [
     (

@@ -1,4 +1,4 @@
-//! Statistics of a record's channels: noise, correlation.
+//! Statistics of a record's channels: noise, correlation, quantiles.
 
 use super::*;
 
@@ -37,4 +37,15 @@ pub fn noise_std(values: impl Iterator<Item = f64> + Clone) -> f64 {
     let mid = d2.len() / 2;
     let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
     1.4826 * *m / 6f64.sqrt()
+}
+
+/// The `q`-quantile of `v` (`q` in `0..=1`, the nearest rank); `None`
+/// for no values.
+pub fn quantile(mut v: Vec<f64>, q: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let k = ((v.len() - 1) as f64 * q).round() as usize;
+    let (_, m, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+    Some(*m)
 }

@@ -70,26 +70,17 @@ use crate::evaluate::errors::{error_table, load_bin, ErrorTable};
 use crate::identify::lsq;
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::{split_branches, Split, SplitConfig};
-use crate::record::{DataError, DataErrorKind, Record, Sample};
+use crate::record::{quantile, DataError, DataErrorKind, Record, Sample};
 
+use config::check_against_record;
 use feasible_set::*;
 use initial_guess::initial_guess;
 use problem::*;
 use report::systematic_misfit;
-use test_kind::check_against_record;
 
 /// [`fit_with_progress`] without progress reports.
 pub fn fit(record: &Record, cfg: &FitConfig) -> Result<FitReport, FitError> {
     fit_with_progress(record, cfg, &|_| {})
-}
-
-fn quantile(mut v: Vec<f64>, q: f64) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    let k = ((v.len() - 1) as f64 * q).round() as usize;
-    let (_, m, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-    Some(*m)
 }
 
 /// Identify the model from `record`; `progress` hears about long work.

@@ -1,5 +1,4 @@
-//! The kind of test a record is, the samples it leaves slack, and the
-//! record-level contradictions of the options.
+//! The kind of test a record is and the samples it leaves slack.
 
 use super::*;
 
@@ -95,69 +94,4 @@ pub fn slack_mask(samples: &[Sample], test: TestKind) -> Vec<bool> {
     } else {
         vec![false; samples.len()]
     }
-}
-
-/// Mistakes a record shows against the options, before any work: a
-/// `--test` the record contradicts, a `--pmax` below most of the samples,
-/// and (isotonic records) a contraction that falls as the pressure rises.
-pub(super) fn check_against_record(
-    record: &Record,
-    cfg: &FitConfig,
-    detected: TestKind,
-) -> Result<(), FitError> {
-    let samples = &record.samples;
-    if let Some(given) = cfg.test {
-        let pure = |k| matches!(k, TestKind::Isotonic | TestKind::Isometric);
-        if pure(given) && pure(detected) && given != detected {
-            let (holds, moves) = match detected {
-                TestKind::Isotonic => ("load", "contraction"),
-                _ => ("contraction", "load"),
-            };
-            return Err(FitError::Config {
-                option: "--test",
-                why: format!(
-                    "`{given}`, but in {} the {holds} holds while the {moves} moves: it is \
-                     {detected} (leave --test out to detect it, or check the columns)",
-                    record.source
-                ),
-            });
-        }
-    }
-    if let Some(pmax) = cfg.max_pressure_mpa {
-        let above = samples.iter().filter(|s| s.pressure_mpa > pmax).count();
-        let top = samples
-            .iter()
-            .map(|s| s.pressure_mpa)
-            .fold(f64::MIN, f64::max);
-        if 2 * above > samples.len() {
-            return Err(FitError::Config {
-                option: "--pmax",
-                why: format!(
-                    "{pmax} MPa, but {:.0} % of the samples of {} lie above it (its top is {} \
-                     MPa): Pmax is where the loop closes, at the top of the record; leave \
-                     --pmax out to measure it",
-                    100.0 * above as f64 / samples.len() as f64,
-                    record.source,
-                    crate::record::num(top)
-                ),
-            });
-        }
-    }
-    let test = cfg.test.unwrap_or(detected);
-    if test == TestKind::Isotonic {
-        let r = crate::record::correlation(samples, |s| s.pressure_mpa, |s| s.contraction);
-        if r < -0.5 {
-            return Err(FitError::Data(DataError {
-                file: record.source.clone(),
-                line: 0,
-                column: Some("contraction".into()),
-                kind: DataErrorKind::Implausible(format!(
-                    "falls as the pressure rises (correlation {r:.2} over the record): a muscle \
-                     shortens when pressurised, so contraction = (rest length − length)/rest \
-                     length rises with pressure; is its sign flipped?"
-                )),
-            }));
-        }
-    }
-    Ok(())
 }

@@ -1,0 +1,589 @@
+//! The workspace's shape, checked: no two source files of a crate import
+//! each other in a loop, no pam-lab file over 900 lines, and the READMEs a
+//! newcomer reads first within their lengths.
+//!
+//! The import graph is file-level: a file points at the file that defines
+//! the module a path names (`crate::`, `super::`, `self::` or a child
+//! module's name; its `use` statements, braces expanded, and the paths
+//! written in its code), test modules and comments left out. A `mod`
+//! declaration is not an import.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ sits in the workspace")
+        .to_path_buf()
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let mut entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|e| e == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The file's code without its comments and without its test modules
+/// (a `#[cfg(test)]` item and everything in its braces).
+fn code_of(text: &str) -> String {
+    let mut code = String::new();
+    for line in text.lines() {
+        let line = match line.find("//") {
+            // A `//` inside a string (a URL) is rare in these sources and
+            // cuts only the rest of that line.
+            Some(i) => &line[..i],
+            None => line,
+        };
+        code.push_str(line);
+        code.push('\n');
+    }
+    // Cut `#[cfg(test)]` items: from the attribute to the end of the item's
+    // braces (or its `;`).
+    let mut out = String::new();
+    let mut rest = code.as_str();
+    while let Some(i) = rest.find("#[cfg(test)]") {
+        out.push_str(&rest[..i]);
+        let after = &rest[i..];
+        let mut depth = 0usize;
+        let mut end = after.len();
+        for (j, c) in after.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' => {
+                    depth = depth.saturating_sub(1);
+                    if depth == 0 {
+                        end = j + 1;
+                        break;
+                    }
+                }
+                ';' if depth == 0 => {
+                    end = j + 1;
+                    break;
+                }
+                _ => {}
+            }
+        }
+        rest = &after[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// `a::{b, c::{d, e}}` → `a::b`, `a::c::d`, `a::c::e`.
+fn expand(tree: &str) -> Vec<String> {
+    let tree: String = tree.chars().filter(|c| !c.is_whitespace()).collect();
+    let Some(open) = tree.find('{') else {
+        return vec![tree];
+    };
+    let prefix = &tree[..open];
+    let inner = &tree[open + 1..tree.rfind('}').unwrap_or(tree.len())];
+    let (mut parts, mut depth, mut start) = (Vec::new(), 0usize, 0usize);
+    for (i, c) in inner.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' => depth = depth.saturating_sub(1),
+            ',' if depth == 0 => {
+                parts.push(&inner[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    parts.push(&inner[start..]);
+    parts
+        .into_iter()
+        .filter(|p| !p.is_empty())
+        .flat_map(|p| expand(p).into_iter().map(move |s| format!("{prefix}{s}")))
+        .collect()
+}
+
+/// The module path of a source file (`src/a/b.rs` and `src/a/b/mod.rs`:
+/// `[a, b]`; `lib.rs`, `main.rs`: `[]`).
+fn module_of(src: &Path, file: &Path) -> Vec<String> {
+    let rel = file.strip_prefix(src).expect("under src");
+    let mut parts: Vec<String> = rel
+        .iter()
+        .map(|s| s.to_string_lossy().trim_end_matches(".rs").to_string())
+        .collect();
+    if matches!(
+        parts.last().map(String::as_str),
+        Some("mod" | "lib" | "main")
+    ) {
+        parts.pop();
+    }
+    parts
+}
+
+/// A `use` item: the path it names and the name it brings in (`*`: all).
+struct UseItem {
+    path: Vec<String>,
+    name: String,
+}
+
+/// What the import graph needs of one file.
+struct FileInfo {
+    module: Vec<String>,
+    /// Names the file itself defines.
+    defs: BTreeSet<String>,
+    uses: Vec<UseItem>,
+    /// Names the code outside its `use` statements may take from another
+    /// file: types, constants, functions and macros called, paths' heads.
+    body_idents: BTreeSet<String>,
+    /// Paths (`a::b`) written in the code outside its `use` statements.
+    body_paths: Vec<Vec<String>>,
+}
+
+fn is_ident_char(c: char) -> bool {
+    c.is_alphanumeric() || c == '_'
+}
+
+/// The code with its string and char literals emptied.
+fn without_literals(code: &str) -> String {
+    let mut out = String::with_capacity(code.len());
+    let mut chars = code.chars().peekable();
+    let mut prev = ' ';
+    while let Some(c) = chars.next() {
+        if c == '"' {
+            out.push('"');
+            let mut escaped = false;
+            for d in chars.by_ref() {
+                if d == '"' && !escaped {
+                    break;
+                }
+                escaped = d == '\\' && !escaped;
+            }
+            out.push('"');
+        } else if c == '\'' && !is_ident_char(prev) {
+            // A char literal ('a', '\n'), not a lifetime ('a).
+            let look: String = chars.clone().take(4).collect();
+            match look.find('\'') {
+                Some(n) if n > 0 => {
+                    for _ in 0..=n {
+                        chars.next();
+                    }
+                    out.push_str("' '");
+                }
+                _ => out.push(c),
+            }
+        } else {
+            out.push(c);
+        }
+        prev = c;
+    }
+    out
+}
+
+fn file_info(module: Vec<String>, text: &str) -> FileInfo {
+    let code = without_literals(&code_of(text));
+    let mut uses = Vec::new();
+    let mut body = String::new();
+    let mut rest = code.as_str();
+    loop {
+        let Some(i) = rest.find("use ") else {
+            body.push_str(rest);
+            break;
+        };
+        let word_start = rest[..i].chars().last().is_none_or(|c| !is_ident_char(c));
+        let Some(end) = rest[i..].find(';').map(|e| i + e) else {
+            body.push_str(rest);
+            break;
+        };
+        if !word_start {
+            body.push_str(&rest[..i + 4]);
+            rest = &rest[i + 4..];
+            continue;
+        }
+        body.push_str(&rest[..i]);
+        for p in expand(&rest[i + 4..end]) {
+            let (p, alias) = match p.split_once(" as ") {
+                Some((p, a)) => (p.to_string(), Some(a.to_string())),
+                None => (p, None),
+            };
+            let mut path: Vec<String> = p.split("::").map(str::to_string).collect();
+            if path.last().is_some_and(|s| s == "self") {
+                path.pop();
+            }
+            let Some(last) = path.last().cloned() else {
+                continue;
+            };
+            let name = alias.unwrap_or(last);
+            uses.push(UseItem { path, name });
+        }
+        rest = &rest[end + 1..];
+    }
+    let chars: Vec<char> = body.chars().collect();
+    let (mut body_idents, mut body_paths) = (BTreeSet::new(), Vec::new());
+    let mut defs = BTreeSet::new();
+    let mut i = 0;
+    let mut previous_word = String::new();
+    while i < chars.len() {
+        if is_ident_char(chars[i]) && (i == 0 || !is_ident_char(chars[i - 1])) {
+            let mut j = i;
+            while j < chars.len() && (is_ident_char(chars[j]) || chars[j] == ':') {
+                j += 1;
+            }
+            let word: String = chars[i..j].iter().collect();
+            let word = word.trim_end_matches(':');
+            let first = word.split("::").next().unwrap_or("");
+            if word.contains("::") {
+                body_paths.push(word.split("::").map(str::to_string).collect());
+                body_idents.insert(first.to_string());
+            } else {
+                // A name that can come from another file: a type or a
+                // constant (capitalised), a function or macro called. A
+                // lowercase name otherwise is a field or a variable.
+                let next = chars[j..].iter().find(|c| !c.is_whitespace());
+                let method = i > 0 && chars[i - 1] == '.';
+                let defined_here = matches!(
+                    previous_word.as_str(),
+                    "struct"
+                        | "enum"
+                        | "fn"
+                        | "trait"
+                        | "type"
+                        | "const"
+                        | "static"
+                        | "union"
+                        | "macro_rules"
+                );
+                if !method
+                    && !defined_here
+                    && (first.starts_with(|c: char| c.is_uppercase())
+                        || matches!(next, Some('(' | '!')))
+                {
+                    body_idents.insert(first.to_string());
+                }
+            }
+            if matches!(
+                previous_word.as_str(),
+                "struct"
+                    | "enum"
+                    | "fn"
+                    | "trait"
+                    | "type"
+                    | "const"
+                    | "static"
+                    | "union"
+                    | "macro_rules"
+            ) {
+                defs.insert(word.to_string());
+            }
+            // A lifetime (`'static`) is no keyword.
+            let lifetime = i > 0 && chars[i - 1] == '\'';
+            previous_word = if lifetime {
+                String::new()
+            } else {
+                word.to_string()
+            };
+            i = j;
+        } else {
+            if !chars[i].is_whitespace() && chars[i] != '!' {
+                previous_word.clear();
+            }
+            i += 1;
+        }
+    }
+    FileInfo {
+        module,
+        defs,
+        uses,
+        body_idents,
+        body_paths,
+    }
+}
+
+/// The crate's files by module path.
+type Modules = BTreeMap<Vec<String>, (PathBuf, FileInfo)>;
+
+/// The (module, name) pairs a resolution has asked already: re-exports
+/// and globs may point back at each other.
+type Seen = BTreeSet<(Vec<String>, String)>;
+
+/// The module a path's leading segments name from module `from`, and the
+/// segments left after it; `None` for a path into another crate.
+fn module_prefix<'p>(
+    modules: &Modules,
+    from: &[String],
+    path: &'p [String],
+) -> Option<(Vec<String>, &'p [String])> {
+    let (mut at, mut k) = match path.first().map(String::as_str) {
+        Some("crate") => (Vec::new(), 1),
+        Some("self") => (from.to_vec(), 1),
+        Some("super") => {
+            let mut m = from.to_vec();
+            m.pop();
+            (m, 1)
+        }
+        // A child module's name (edition 2018: `use b::B` in `a`).
+        Some(child) => {
+            let mut next = from.to_vec();
+            next.push(child.to_string());
+            if !modules.contains_key(&next) {
+                return None;
+            }
+            (next, 1)
+        }
+        None => return None,
+    };
+    while k < path.len() {
+        if path[k] == "super" {
+            at.pop();
+        } else {
+            let mut next = at.clone();
+            next.push(path[k].clone());
+            if !modules.contains_key(&next) {
+                break;
+            }
+            at = next;
+        }
+        k += 1;
+    }
+    Some((at, &path[k..]))
+}
+
+/// The file that defines `name` as module `module` sees it: its own
+/// definition, or one it takes through a `use` (followed to the file that
+/// defines it, through re-exports).
+fn definer(modules: &Modules, module: &[String], name: &str, seen: &mut Seen) -> Option<PathBuf> {
+    let (file, info) = modules.get(module)?;
+    if !seen.insert((module.to_vec(), name.to_string())) {
+        return None;
+    }
+    if info.defs.contains(name) {
+        return Some(file.clone());
+    }
+    let mut child = module.to_vec();
+    child.push(name.to_string());
+    if let Some((f, _)) = modules.get(&child) {
+        return Some(f.clone());
+    }
+    for u in info.uses.iter().filter(|u| u.name == name) {
+        if let Some(f) = path_definer(modules, module, &u.path, seen) {
+            return Some(f);
+        }
+    }
+    for u in info.uses.iter().filter(|u| u.name == "*") {
+        let prefix = &u.path[..u.path.len() - 1];
+        if let Some((m, [])) = module_prefix(modules, module, prefix) {
+            if let Some(f) = definer(modules, &m, name, seen) {
+                return Some(f);
+            }
+        }
+    }
+    None
+}
+
+/// The file that defines what `path` names from module `from`.
+fn path_definer(
+    modules: &Modules,
+    from: &[String],
+    path: &[String],
+    seen: &mut Seen,
+) -> Option<PathBuf> {
+    let (at, rest) = module_prefix(modules, from, path)?;
+    match rest.first() {
+        None => modules.get(&at).map(|(f, _)| f.clone()),
+        Some(name) => {
+            definer(modules, &at, name, seen).or_else(|| modules.get(&at).map(|(f, _)| f.clone()))
+        }
+    }
+}
+
+/// The import edges between one crate's source files: a file points at
+/// the file that defines each name it uses (a name its `use` statements
+/// bring in and its code uses, or a path its code writes). A `use` whose
+/// name the code does not use (a re-export) is no edge.
+fn import_graph(src: &Path) -> BTreeMap<PathBuf, BTreeSet<PathBuf>> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    // `src/bin/x.rs` files are crates of their own; a file named `tests.rs`
+    // is a test module.
+    let modules: Modules = files
+        .into_iter()
+        .filter(|f| !f.starts_with(src.join("bin")) && f.file_stem().is_none_or(|s| s != "tests"))
+        .map(|f| {
+            let module = module_of(src, &f);
+            let info = file_info(
+                module.clone(),
+                &std::fs::read_to_string(&f).expect("readable source"),
+            );
+            (module, (f, info))
+        })
+        .collect();
+    let mut graph = BTreeMap::new();
+    for (f, info) in modules.values() {
+        let m = &info.module;
+        let mut edges = BTreeSet::new();
+        for u in &info.uses {
+            if u.name == "*" {
+                let prefix = &u.path[..u.path.len() - 1];
+                if let Some((g, [])) = module_prefix(&modules, m, prefix) {
+                    for ident in &info.body_idents {
+                        edges.extend(definer(&modules, &g, ident, &mut Seen::new()));
+                    }
+                }
+            } else if info.body_idents.contains(&u.name) {
+                edges.extend(path_definer(&modules, m, &u.path, &mut Seen::new()));
+            }
+        }
+        for p in &info.body_paths {
+            edges.extend(path_definer(&modules, m, p, &mut Seen::new()));
+        }
+        edges.remove(f);
+        graph.insert(f.clone(), edges);
+    }
+    graph
+}
+
+/// One loop of files, if the graph has any.
+fn a_cycle(graph: &BTreeMap<PathBuf, BTreeSet<PathBuf>>) -> Option<Vec<PathBuf>> {
+    #[derive(Clone, Copy, PartialEq)]
+    enum Mark {
+        New,
+        Open,
+        Done,
+    }
+    fn visit(
+        n: &PathBuf,
+        graph: &BTreeMap<PathBuf, BTreeSet<PathBuf>>,
+        marks: &mut BTreeMap<PathBuf, Mark>,
+        stack: &mut Vec<PathBuf>,
+    ) -> Option<Vec<PathBuf>> {
+        marks.insert(n.clone(), Mark::Open);
+        stack.push(n.clone());
+        for m in graph.get(n).into_iter().flatten() {
+            match marks.get(m).copied().unwrap_or(Mark::New) {
+                Mark::Open => {
+                    let at = stack.iter().position(|s| s == m).unwrap_or(0);
+                    let mut cycle = stack[at..].to_vec();
+                    cycle.push(m.clone());
+                    return Some(cycle);
+                }
+                Mark::New => {
+                    if let Some(c) = visit(m, graph, marks, stack) {
+                        return Some(c);
+                    }
+                }
+                Mark::Done => {}
+            }
+        }
+        stack.pop();
+        marks.insert(n.clone(), Mark::Done);
+        None
+    }
+    let mut marks = BTreeMap::new();
+    for n in graph.keys() {
+        if marks.get(n).copied().unwrap_or(Mark::New) == Mark::New {
+            if let Some(c) = visit(n, graph, &mut marks, &mut Vec::new()) {
+                return Some(c);
+            }
+        }
+    }
+    None
+}
+
+const CRATES: [&str; 7] = [
+    "pam-core", "firmware", "host-sim", "pam-lab", "bench-m4", "fuzz", "tests",
+];
+
+#[test]
+fn no_two_files_of_a_crate_import_each_other_in_a_loop() {
+    let root = workspace();
+    let mut loops = Vec::new();
+    for c in CRATES {
+        let src = root.join(c).join("src");
+        if !src.is_dir() {
+            continue;
+        }
+        if let Some(cycle) = a_cycle(&import_graph(&src)) {
+            let names: Vec<String> = cycle
+                .iter()
+                .map(|p| p.strip_prefix(&root).unwrap_or(p).display().to_string())
+                .collect();
+            loops.push(names.join(" -> "));
+        }
+    }
+    assert!(loops.is_empty(), "import loops:\n{}", loops.join("\n"));
+}
+
+#[test]
+fn the_loop_finder_finds_a_parent_and_child_that_import_each_other() {
+    // The check itself, on a crate written here: `a/mod.rs` uses `B` of
+    // `a/b.rs`, which takes a helper from `a/mod.rs`.
+    let dir = std::env::temp_dir().join(format!("pam-structure-{}", std::process::id()));
+    let src = dir.join("src");
+    std::fs::create_dir_all(src.join("a")).unwrap();
+    std::fs::write(src.join("lib.rs"), "pub mod a;\npub use a::B;\n").unwrap();
+    let parent = |uses_b: bool| {
+        format!(
+            "//! super::x in a comment\npub mod b;\npub use b::B;\npub fn helper() -> u8 {{ {} }}\n",
+            if uses_b { "B::ONE" } else { "1" }
+        )
+    };
+    let child =
+        "pub struct B;\nimpl B { pub const ONE: u8 = 1; pub fn f() -> u8 { super::helper() } }\n";
+    std::fs::write(src.join("a/b.rs"), child).unwrap();
+    // A re-export alone is no import: no loop.
+    std::fs::write(src.join("a/mod.rs"), parent(false)).unwrap();
+    let re_export_only = a_cycle(&import_graph(&src));
+    // The parent uses what it re-exports: the loop.
+    std::fs::write(src.join("a/mod.rs"), parent(true)).unwrap();
+    let used = a_cycle(&import_graph(&src));
+    // The child's way back only in a comment, a string and a test module.
+    std::fs::write(
+        src.join("a/b.rs"),
+        "pub struct B;\n// super::helper()\nconst S: &str = \"super::helper\";\nimpl B { pub const ONE: u8 = 1; }\n#[cfg(test)]\nmod tests { fn t() { super::super::helper(); } }\n",
+    )
+    .unwrap();
+    let commented = a_cycle(&import_graph(&src));
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(re_export_only, None);
+    let used = used.expect("the loop a/mod.rs <-> a/b.rs");
+    assert_eq!(used.len(), 3, "{used:?}");
+    assert!(
+        used.iter()
+            .all(|p| p.ends_with("a/mod.rs") || p.ends_with("a/b.rs")),
+        "{used:?}"
+    );
+    assert_eq!(commented, None);
+}
+
+fn lines_of(path: &Path) -> usize {
+    std::fs::read_to_string(path).map_or(0, |t| t.lines().count())
+}
+
+#[test]
+fn no_pam_lab_file_is_over_900_lines() {
+    let root = workspace().join("pam-lab");
+    let mut files = Vec::new();
+    rust_files(&root.join("src"), &mut files);
+    rust_files(&root.join("tests"), &mut files);
+    rust_files(&root.join("benches"), &mut files);
+    let long: Vec<String> = files
+        .iter()
+        .filter(|f| lines_of(f) > 900)
+        .map(|f| format!("{}: {} lines", f.display(), lines_of(f)))
+        .collect();
+    assert!(files.len() > 20, "{} files found", files.len());
+    assert!(long.is_empty(), "{}", long.join("\n"));
+}
+
+#[test]
+fn the_first_readmes_are_short() {
+    let root = workspace();
+    for (readme, most) in [("README.md", 150), ("firmware/README.md", 300)] {
+        let n = lines_of(&root.join(readme));
+        assert!(n > 0, "{readme} missing");
+        assert!(n <= most, "{readme}: {n} lines, at most {most}");
+    }
+}
