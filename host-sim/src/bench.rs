@@ -34,6 +34,16 @@ pub enum Mode {
 }
 
 impl Mode {
+    /// Every mode, in the order the report lists them.
+    pub const ALL: [Mode; 4] = [
+        Mode::FeedforwardPi,
+        Mode::FeedforwardMemoryPi,
+        Mode::DiagnosedFeedforwardPi,
+        Mode::PiOnly,
+    ];
+}
+
+impl Mode {
     /// Short label.
     pub fn label(self) -> &'static str {
         match self {

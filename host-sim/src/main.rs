@@ -82,7 +82,6 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
             other => return Err(format!("unknown argument {other:?} (try --help)").into()),
         }
     }
-    std::fs::create_dir_all(&out)?;
     let mut cfg = BenchConfig::default_with_seed(seed);
     if let Some(kp) = kp_mpa {
         cfg.controller.kp_mpa = kp;
@@ -90,9 +89,14 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(ki) = ki_mpa_per_s {
         cfg.controller.ki_mpa_per_s = ki;
     }
-    cfg.controller
-        .validate()
-        .map_err(|e| format!("controller gains refused: {e:?}"))?;
+    // Every mode's controller as the bench builds it, before any work or
+    // any folder: the bench's runs then cannot meet a refused one.
+    for mode in host_sim::bench::Mode::ALL {
+        host_sim::bench::controller_config(mode, &cfg)
+            .validate()
+            .map_err(|e| format!("controller settings refused ({}): {e}", mode.label()))?;
+    }
+    std::fs::create_dir_all(&out)?;
 
     println!("host-sim: firmware controller on the simulated McKibben rig (seed {seed})");
     println!("[1/6] characterisation run (isotonic, 100-600 N) ...");

@@ -2,6 +2,7 @@
 
 use crate::bench::{Run, TraceRow};
 use crate::rig::Sample;
+use pam_lab::report::axes;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -110,8 +111,8 @@ pub fn plot_scenario(
         .y_label_area_size(70)
         .build_cartesian_2d(0.0..t_end, yr.clone())?;
     c.configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("contraction (fraction of rest length)")
+        .x_desc(axes::TIME_S)
+        .y_desc(axes::CONTRACTION)
         .draw()?;
     c.draw_series(std::iter::once(Rectangle::new(
         [(0.0, yr.start), (warmup_s.min(t_end), yr.end)],
@@ -148,7 +149,7 @@ pub fn plot_scenario(
         .y_label_area_size(70)
         .build_cartesian_2d(0.0..t_end, -emax..emax)?;
     c.configure_mesh()
-        .x_desc("time (s)")
+        .x_desc(axes::TIME_S)
         .y_desc("tracking error (fraction of rest length)")
         .y_label_formatter(&|v| format!("{v:.4}"))
         .draw()?;
@@ -182,8 +183,8 @@ pub fn plot_scenario(
         .y_label_area_size(70)
         .build_cartesian_2d(0.0..t_end, yr)?;
     c.configure_mesh()
-        .x_desc("time (s)")
-        .y_desc("pressure (MPa)")
+        .x_desc(axes::TIME_S)
+        .y_desc(axes::PRESSURE_MPA)
         .draw()?;
     let mut entries = Vec::new();
     for s in runs {
@@ -215,7 +216,7 @@ pub fn plot_scenario(
         .y_label_area_size(70)
         .build_cartesian_2d(0.0..t_end, yr)?;
     c.configure_mesh()
-        .x_desc("time (s)")
+        .x_desc(axes::TIME_S)
         .y_desc("load (N)")
         .draw()?;
     c.draw_series(LineSeries::new(
@@ -270,8 +271,8 @@ pub fn plot_loops(path: &Path, title: &str, run: &Run, warmup_s: f64) -> Result<
         .y_label_area_size(60)
         .build_cartesian_2d(xr, yr)?;
     c.configure_mesh()
-        .x_desc("contraction (fraction of rest length)")
-        .y_desc("pressure (MPa)")
+        .x_desc(axes::CONTRACTION)
+        .y_desc(axes::PRESSURE_MPA)
         .draw()?;
     let (lmin, lmax) = kept.iter().fold((f64::MAX, f64::MIN), |(a, b), r| {
         (a.min(r.load_n), b.max(r.load_n))

@@ -16,6 +16,10 @@ fn bad_options_are_named_with_what_is_expected() {
             "error: --ki `fast`: expected a gain in MPa/s",
         ),
         (&["--bogus"][..], "error: unknown argument \"--bogus\""),
+        (
+            &["--ki", "-1"][..],
+            "error: controller settings refused (FF+PI): ",
+        ),
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
             .args(args)
@@ -25,5 +29,9 @@ fn bad_options_are_named_with_what_is_expected() {
         assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
         assert!(stderr.starts_with(want), "{args:?}: {stderr}");
         assert!(!stderr.contains("ParseIntError"), "{stderr}");
+        assert!(
+            !stderr.contains("{ ") && !stderr.contains("Error"),
+            "a debug dump: {stderr}"
+        );
     }
 }

@@ -534,3 +534,62 @@ fn diagnose_warns_of_a_time_column_in_milliseconds() {
         "{stderr}"
     );
 }
+
+#[test]
+fn simulate_writes_its_errors_as_model_minus_measured() {
+    // The paper model's own noise-free record with the measured contraction
+    // lowered by 0.01: the model lies above the measurement, so the
+    // contraction error is +0.01 and the pressure the model needs at the
+    // lower measured contraction is below the measured one (negative).
+    let dir = tempfile::tempdir().unwrap();
+    let rec = generate(
+        &Params::DEFAULT,
+        &Protocol::quick(&[100.0, 300.0]),
+        0.0,
+        0.0,
+        1,
+    );
+    let mut text = String::from("t_s,load_n,pressure_mpa,contraction\n");
+    for s in &rec.samples {
+        text.push_str(&format!(
+            "{},{},{},{}\n",
+            s.t_s,
+            s.load_n,
+            s.pressure_mpa,
+            s.contraction - 0.01
+        ));
+    }
+    let data = dir.path().join("low.csv");
+    std::fs::write(&data, text).unwrap();
+    let model = dir.path().join("model.json");
+    std::fs::write(
+        &model,
+        pam_lab::export::model_file::ModelFile::new(Params::DEFAULT, None).to_json(),
+    )
+    .unwrap();
+    let out = dir.path().join("sim.csv");
+    let (ok, _, stderr) = pam_lab(&[
+        "simulate",
+        model.to_str().unwrap(),
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    let csv = std::fs::read_to_string(&out).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (ex, ep) = (col("error_contraction"), col("error_pressure_mpa"));
+    let (mut x_median, mut p_median): (Vec<f64>, Vec<f64>) = lines
+        .map(|l| {
+            let v: Vec<&str> = l.split(',').collect();
+            (v[ex].parse::<f64>().unwrap(), v[ep].parse::<f64>().unwrap())
+        })
+        .unzip();
+    x_median.sort_by(f64::total_cmp);
+    p_median.sort_by(f64::total_cmp);
+    let (x, p) = (x_median[x_median.len() / 2], p_median[p_median.len() / 2]);
+    assert!((x - 0.01).abs() < 0.002, "median contraction error {x}");
+    assert!(p < -0.005, "median pressure error {p} MPa");
+}

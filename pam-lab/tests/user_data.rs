@@ -76,6 +76,97 @@ fn no_command_writes_over_its_input() {
 }
 
 #[test]
+fn fit_diagnose_and_import_never_write_over_their_inputs() {
+    // Each command's output directory holds a file the command reads,
+    // under the name of one it writes: refused before any work, the input
+    // untouched.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let read = |p: &Path| std::fs::read(p).unwrap();
+    let refused = |args: &[&str], input: &Path| {
+        let before = read(input);
+        let (ok, stdout, stderr) = pam_lab(args);
+        assert!(!ok && stdout.is_empty(), "{args:?}: {stdout}{stderr}");
+        assert!(
+            stderr.contains("cannot write: it is the input"),
+            "{args:?}: {stderr}"
+        );
+        assert_eq!(read(input), before, "{args:?}");
+    };
+    let o = out.to_str().unwrap();
+    // fit: the record as the model file, then the validation record as the
+    // blob (a hard link under another name).
+    let rec = out.join("model.json");
+    std::fs::copy(example("reference.csv"), &rec).unwrap();
+    refused(
+        &["fit", rec.to_str().unwrap(), "-o", o, "--no-plot", "-q"],
+        &rec,
+    );
+    let own = dir.path().join("rec.csv");
+    std::fs::copy(example("reference.csv"), &own).unwrap();
+    let blob = out.join("model.blob");
+    std::fs::hard_link(&own, &blob).unwrap();
+    refused(
+        &[
+            "fit",
+            own.to_str().unwrap(),
+            "--validate",
+            blob.to_str().unwrap(),
+            "-o",
+            o,
+            "--no-plot",
+            "-q",
+        ],
+        &own,
+    );
+    // diagnose: the record as its report.
+    let report = out.join("report.json");
+    std::fs::copy(example("reference.csv"), &report).unwrap();
+    refused(
+        &[
+            "diagnose",
+            report.to_str().unwrap(),
+            "-o",
+            o,
+            "--no-plot",
+            "-q",
+        ],
+        &report,
+    );
+    // import: a logger's file named as the record it writes, in the output
+    // directory itself; then the mapping through a symbolic link.
+    let data = dir.path().join("logger");
+    std::fs::create_dir(&data).unwrap();
+    std::fs::write(data.join("r.csv"), "0.0,10,100\n0.1,11,120\n0.2,12,140\n").unwrap();
+    let map = dir.path().join("map.toml");
+    std::fs::write(
+        &map,
+        "header = false\nlength_unit = \"cm\"\n[columns]\nload = { column = 2, unit = \"N\" }\n\
+         pressure = { column = 3, unit = \"kPa\" }\ntime = { column = 1, unit = \"s\" }\n\
+         [[record]]\nname = \"r\"\nrest_length = 10\nfiles = [ { path = \"r.csv\", held_length = 9 } ]\n",
+    )
+    .unwrap();
+    let d = data.to_str().unwrap();
+    refused(
+        &["import", map.to_str().unwrap(), "--data-dir", d, "-o", d],
+        &data.join("r.csv"),
+    );
+    std::os::unix::fs::symlink(&map, data.join("map_link.csv")).unwrap();
+    std::fs::write(
+        &map,
+        std::fs::read_to_string(&map)
+            .unwrap()
+            .replace("name = \"r\"", "name = \"map_link\""),
+    )
+    .unwrap();
+    refused(
+        &["import", map.to_str().unwrap(), "--data-dir", d, "-o", d],
+        &map,
+    );
+}
+
+#[test]
 fn an_interrupted_diagnose_leaves_nothing_behind() {
     // Ctrl-C (SIGINT) and a service manager's stop (SIGTERM) alike.
     for signal in ["-INT", "-TERM"] {

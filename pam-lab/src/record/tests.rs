@@ -318,3 +318,73 @@ fn a_held_length_is_the_protocol_not_a_stuck_sensor() {
     let e = check_record(&hung, Purpose::Fit).unwrap_err();
     assert!(matches!(e.kind, DataErrorKind::Stuck { .. }), "{e}");
 }
+
+/// A triangle of pressure between 0 and 0.5 MPa at `rate_mpa_per_s`,
+/// sampled every `dt_s`, held for `hold_s` at each end, with a
+/// deterministic ±1 kPa of sensor noise; times written as `time_scale`
+/// times seconds.
+fn triangle(rate_mpa_per_s: f64, dt_s: f64, hold_s: f64, n: usize, time_scale: f64) -> Record {
+    let ramp_s = 0.5 / rate_mpa_per_s;
+    let period = 2.0 * (ramp_s + hold_s);
+    record(
+        |i| {
+            let t = i as f64 * dt_s;
+            let u = t % period;
+            let p = if u < ramp_s {
+                u * rate_mpa_per_s
+            } else if u < ramp_s + hold_s {
+                0.5
+            } else if u < 2.0 * ramp_s + hold_s {
+                0.5 - (u - ramp_s - hold_s) * rate_mpa_per_s
+            } else {
+                0.0
+            };
+            let noise = 0.001 * (((i * 7_919) % 1_000) as f64 / 500.0 - 1.0);
+            Sample {
+                t_s: t * time_scale,
+                load_n: 100.0,
+                pressure_mpa: p + noise,
+                contraction: 0.2 * p,
+            }
+        },
+        n,
+    )
+}
+
+fn warns_of_milliseconds(r: &Record) -> bool {
+    unit_warnings(r)
+        .iter()
+        .any(|w| w.contains("divide it by 1000"))
+}
+
+#[test]
+fn time_in_milliseconds_is_told_by_its_slow_pressure_also_on_a_short_record() {
+    // 10 s at 1 kHz and 20 s at 100 Hz, ramps of 0.25 MPa/s, logged in ms:
+    // under 3 "hours", so only the rate tells.
+    assert!(warns_of_milliseconds(&triangle(
+        0.25, 0.001, 0.5, 10_000, 1000.0
+    )));
+    assert!(warns_of_milliseconds(&triangle(
+        0.25, 0.01, 0.5, 2_000, 1000.0
+    )));
+    // The same in seconds.
+    assert!(!warns_of_milliseconds(&triangle(
+        0.25, 0.001, 0.5, 10_000, 1.0
+    )));
+    // A true slow test: 1 Hz, 5 kPa/s ramps with 60 s holds, 3 hours.
+    assert!(!warns_of_milliseconds(&triangle(
+        0.005,
+        1.0,
+        60.0,
+        3 * 3_600,
+        1.0
+    )));
+    // A record of hours at a second a sample is still told by its length.
+    assert!(warns_of_milliseconds(&triangle(
+        0.25,
+        1.0,
+        0.0,
+        6 * 3_600,
+        1.0
+    )));
+}

@@ -1,6 +1,7 @@
 //! Plots of `pam-lab diagnose`: the residual against time with the regimes
 //! marked, and the loops before and after the added effects.
 
+use super::axes;
 use std::path::Path;
 
 use plotters::prelude::*;
@@ -107,11 +108,11 @@ pub fn residual_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow
     let (tt, rt) = (tick_format(t0, t1), tick_format(-lim, lim));
     chart
         .configure_mesh()
-        .x_desc("time (s)")
+        .x_desc(axes::TIME_S)
         .y_desc(if isometric(r) {
-            "model − measured pressure (MPa)"
+            axes::PRESSURE_ERROR_MPA
         } else {
-            "model − measured contraction (fraction of rest length)"
+            axes::CONTRACTION_ERROR
         })
         .light_line_style(WHITE)
         .x_label_formatter(&tt)
@@ -325,16 +326,12 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
     )?;
     let (x_desc, rms_unit, model_label) = if iso {
         (
-            "force (N)",
+            axes::FORCE_N,
             " MPa",
             "pressure the model needs at the held length",
         )
     } else {
-        (
-            "contraction (fraction of rest length)",
-            "",
-            "simulated from measured pressure",
-        )
+        (axes::CONTRACTION, "", "simulated from measured pressure")
     };
     let panels = root.split_evenly((1, 2));
     for (k, panel) in panels.iter().enumerate() {
@@ -370,7 +367,7 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
         chart
             .configure_mesh()
             .x_desc(x_desc)
-            .y_desc("pressure (MPa)")
+            .y_desc(axes::PRESSURE_MPA)
             .x_label_formatter(&xt)
             .y_label_formatter(&yt)
             .draw()?;

@@ -17,6 +17,7 @@
 //! with the unit in parentheses, and tick labels come from [`tick_format`]
 //! (a zero prints as `0`, never `-0.000`).
 
+use super::axes;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -176,8 +177,8 @@ pub fn fit_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
             .map_err(e)?;
         chart
             .configure_mesh()
-            .x_desc("contraction (fraction of rest length)")
-            .y_desc("pressure (MPa)")
+            .x_desc(axes::CONTRACTION)
+            .y_desc(axes::PRESSURE_MPA)
             .x_label_formatter(&xt)
             .y_label_formatter(&yt)
             .draw()
@@ -297,8 +298,8 @@ fn isometric_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
         .map_err(e)?;
     chart
         .configure_mesh()
-        .x_desc("force on the muscle, the load (N)")
-        .y_desc("pressure (MPa)")
+        .x_desc(axes::FORCE_N)
+        .y_desc(axes::PRESSURE_MPA)
         .x_label_formatter(&xt)
         .y_label_formatter(&yt)
         .draw()
@@ -395,8 +396,8 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
             .build_cartesian_2d(t0..t1, yr)
             .map_err(e)?;
         c1.configure_mesh()
-            .x_desc("time (s)")
-            .y_desc("contraction (fraction of rest length)")
+            .x_desc(axes::TIME_S)
+            .y_desc(axes::CONTRACTION)
             .x_label_formatter(&tt)
             .y_label_formatter(&yt)
             .draw()
@@ -423,10 +424,8 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
             .build_cartesian_2d(t0..t1, (-1.05 * emax)..(1.05 * emax))
             .map_err(e)?;
         c2.configure_mesh()
-            .x_desc("time (s)")
-            // The contraction error (the panel above names the quantity):
-            // the label fits the lower panel's height.
-            .y_desc("model − measured (fraction of rest length)")
+            .x_desc(axes::TIME_S)
+            .y_desc(axes::CONTRACTION_ERROR)
             .x_label_formatter(&tt)
             .y_label_formatter(&et)
             .draw()
