@@ -232,45 +232,71 @@ fn checked_body(bytes: &[u8], payload_len: usize) -> Result<usize, Error> {
     Ok(body)
 }
 
+/// Where each effect's fields sit in the version-2 field array, in the
+/// order of its struct's fields: the layout, written once (the rate's
+/// saturation and the shape's shifts came later, after the first fields).
+const MEMORY_AT: [usize; 2] = [0, 1];
+const RATE_AT: [usize; 5] = [2, 3, 4, 5, 14];
+const CREEP_AT: [usize; 2] = [6, 7];
+const WIDTH_AT: [usize; 2] = [8, 9];
+const SHAPE_AT: [usize; 10] = [10, 11, 12, 13, 15, 16, 17, 18, 19, 20];
+
+/// `values` into `f` at `at`.
+fn scatter<const N: usize>(f: &mut [f32; EFFECT_FIELDS], at: [usize; N], values: [f32; N]) {
+    for (i, v) in at.into_iter().zip(values) {
+        if let Some(slot) = f.get_mut(i) {
+            *slot = v;
+        }
+    }
+}
+
+/// The fields of `f` at `at`.
+fn gather<const N: usize>(f: &[f32; EFFECT_FIELDS], at: [usize; N]) -> [f32; N] {
+    at.map(|i| f.get(i).copied().unwrap_or(0.0))
+}
+
 /// The effect flags and fields of `e`, in the version-2 layout.
 fn effect_fields(e: &Effects) -> (u32, [f32; EFFECT_FIELDS]) {
     let mut flags = 0;
     let mut f = [0.0f32; EFFECT_FIELDS];
     if let Some(m) = e.memory {
         flags |= FLAG_MEMORY;
-        f[0] = m.shape;
-        f[1] = m.merge_span;
+        scatter(&mut f, MEMORY_AT, [m.shape, m.merge_span]);
     }
     if let Some(r) = e.rate {
         flags |= FLAG_RATE;
-        f[2] = r.scale_at_rest;
-        f[3] = r.scale_per_mpa_per_s;
-        f[4] = r.exponent;
-        f[5] = r.filter_time_s;
-        f[14] = r.max_rate_mpa_per_s;
+        let v = [
+            r.scale_at_rest,
+            r.scale_per_mpa_per_s,
+            r.exponent,
+            r.filter_time_s,
+            r.max_rate_mpa_per_s,
+        ];
+        scatter(&mut f, RATE_AT, v);
     }
     if let Some(c) = e.creep {
         flags |= FLAG_CREEP;
-        f[6] = c.gain;
-        f[7] = c.time_constant_s;
+        scatter(&mut f, CREEP_AT, [c.gain, c.time_constant_s]);
     }
     if let Some(w) = e.width {
         flags |= FLAG_WIDTH;
-        f[8] = w.scale_at_min_load;
-        f[9] = w.scale_per_step;
+        scatter(&mut f, WIDTH_AT, [w.scale_at_min_load, w.scale_per_step]);
     }
     if let Some(c) = e.shape {
         flags |= FLAG_SHAPE;
-        f[10] = c.bulge;
-        f[11] = c.tilt;
-        f[12] = c.bulge_per_step;
-        f[13] = c.tilt_per_step;
-        f[15] = c.root_shift;
-        f[16] = c.end_shift;
-        f[17] = c.root_shift_per_step;
-        f[18] = c.end_shift_per_step;
-        f[19] = c.root_shift_per_step_sq;
-        f[20] = c.end_shift_per_step_sq;
+        let v = [
+            c.bulge,
+            c.tilt,
+            c.bulge_per_step,
+            c.tilt_per_step,
+            c.root_shift,
+            c.end_shift,
+            c.root_shift_per_step,
+            c.end_shift_per_step,
+            c.root_shift_per_step_sq,
+            c.end_shift_per_step_sq,
+        ];
+        scatter(&mut f, SHAPE_AT, v);
     }
     if e.pressure_lag.is_some() {
         flags |= FLAG_PRESSURE_LAG;
@@ -291,43 +317,41 @@ fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> 
         }
         Ok(present)
     };
+    let [shape, merge_span] = gather(f, MEMORY_AT);
+    let [scale_at_rest, scale_per_mpa_per_s, exponent, filter_time_s, max_rate_mpa_per_s] =
+        gather(f, RATE_AT);
+    let [gain, time_constant_s] = gather(f, CREEP_AT);
+    let [scale_at_min_load, scale_per_step] = gather(f, WIDTH_AT);
+    let s = gather(f, SHAPE_AT);
     let e = Effects {
-        memory: on(FLAG_MEMORY, &f[0..2])?.then_some(NonLocalMemory {
-            shape: f[0],
-            merge_span: f[1],
+        memory: on(FLAG_MEMORY, &gather(f, MEMORY_AT))?
+            .then_some(NonLocalMemory { shape, merge_span }),
+        rate: on(FLAG_RATE, &gather(f, RATE_AT))?.then_some(RateDependence {
+            scale_at_rest,
+            scale_per_mpa_per_s,
+            exponent,
+            filter_time_s,
+            max_rate_mpa_per_s,
         }),
-        rate: on(FLAG_RATE, &[f[2], f[3], f[4], f[5], f[14]])?.then_some(RateDependence {
-            scale_at_rest: f[2],
-            scale_per_mpa_per_s: f[3],
-            exponent: f[4],
-            filter_time_s: f[5],
-            max_rate_mpa_per_s: f[14],
+        creep: on(FLAG_CREEP, &gather(f, CREEP_AT))?.then_some(Creep {
+            gain,
+            time_constant_s,
         }),
-        creep: on(FLAG_CREEP, &f[6..8])?.then_some(Creep {
-            gain: f[6],
-            time_constant_s: f[7],
+        width: on(FLAG_WIDTH, &gather(f, WIDTH_AT))?.then_some(LoadDependentWidth {
+            scale_at_min_load,
+            scale_per_step,
         }),
-        width: on(FLAG_WIDTH, &f[8..10])?.then_some(LoadDependentWidth {
-            scale_at_min_load: f[8],
-            scale_per_step: f[9],
-        }),
-        shape: on(
-            FLAG_SHAPE,
-            &[
-                f[10], f[11], f[12], f[13], f[15], f[16], f[17], f[18], f[19], f[20],
-            ],
-        )?
-        .then_some(ConstraintShape {
-            bulge: f[10],
-            tilt: f[11],
-            bulge_per_step: f[12],
-            tilt_per_step: f[13],
-            root_shift: f[15],
-            end_shift: f[16],
-            root_shift_per_step: f[17],
-            end_shift_per_step: f[18],
-            root_shift_per_step_sq: f[19],
-            end_shift_per_step_sq: f[20],
+        shape: on(FLAG_SHAPE, &s)?.then_some(ConstraintShape {
+            bulge: s[0],
+            tilt: s[1],
+            bulge_per_step: s[2],
+            tilt_per_step: s[3],
+            root_shift: s[4],
+            end_shift: s[5],
+            root_shift_per_step: s[6],
+            end_shift_per_step: s[7],
+            root_shift_per_step_sq: s[8],
+            end_shift_per_step_sq: s[9],
             table: StrokeTable::NEUTRAL,
         }),
         // Its field is after the table (version 4): read there.
@@ -836,5 +860,19 @@ mod tests {
         b[4] = 9;
         assert_eq!(decode_model(&b), Err(Error::Blob("unsupported version")));
         assert_eq!(framed_len(&b), None);
+    }
+
+    #[test]
+    fn each_effect_field_has_one_place_in_the_layout() {
+        // Every index of the version-2 field array belongs to exactly one
+        // effect's field.
+        let mut seen = [0u8; EFFECT_FIELDS];
+        let all: [&[usize]; 5] = [&MEMORY_AT, &RATE_AT, &CREEP_AT, &WIDTH_AT, &SHAPE_AT];
+        for at in all {
+            for &i in at {
+                seen[i] += 1;
+            }
+        }
+        assert_eq!(seen, [1u8; EFFECT_FIELDS]);
     }
 }
