@@ -542,7 +542,7 @@ impl LoadModel {
     }
 
     /// Unclamped branch pressure and its slope with respect to contraction.
-    fn branch_and_slope(&self, x: f32, sign: f32) -> (f32, f32) {
+    pub(crate) fn branch_and_slope(&self, x: f32, sign: f32) -> (f32, f32) {
         let q = (self.a * x - self.b) * x + self.c;
         let dq = 2.0 * self.a * x - self.b;
         let w = self.radicand(x);

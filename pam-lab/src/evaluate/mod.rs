@@ -2,5 +2,6 @@
 //! simulator, the one record simulator) and its errors against the
 //! measurement ([`errors`]: per load and branch, noise floor, correlation).
 
+pub mod crossing;
 pub mod errors;
 pub mod simulate;

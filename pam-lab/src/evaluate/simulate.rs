@@ -15,6 +15,7 @@
 
 use pam_core::{Branch, Coeffs, Effects, Simulator, TrackerConfig};
 
+use super::crossing::crossing;
 use crate::record::Sample;
 
 /// One simulated sample.
@@ -131,14 +132,11 @@ pub fn run_record(
     true
 }
 
-/// Halvings of [`pressure_to_reach`]'s search: 2⁻²⁶ of its interval
-/// (under 1e-7 MPa on a 5 MPa one), below the `f32` model's resolution.
-pub const PRESSURE_SEARCH_STEPS: usize = 26;
-
 /// The pressure the model needs to reach each sample's measured
 /// contraction: at every sample the simulator, stepped with a trial
-/// pressure, is bisected ([`PRESSURE_SEARCH_STEPS`]) on
-/// `0..=pressure_limit_mpa` until it gives the sample's contraction, and
+/// pressure, is searched on `0..=pressure_limit_mpa` from the previous
+/// sample's answer ([`crossing`], to `2⁻²⁶` of the interval, as a 26-step
+/// bisection) until it gives the sample's contraction, and
 /// goes on with the pressure found: the model's own pressure history, as a
 /// feedforward's (with the measured one, a lag effect such as creep would
 /// need an unbounded pressure to close in one sample what the measured
@@ -146,12 +144,12 @@ pub const PRESSURE_SEARCH_STEPS: usize = 26;
 /// test's prediction (the length held, the pressure the model says it
 /// takes) with every effect in, which the static inverse alone leaves out.
 /// On a known branch (`branches`) the trial contraction does not fall as
-/// the pressure rises, so the bisection finds the one answer; a contraction
+/// the pressure rises, so the search finds the one answer; a contraction
 /// outside what the model reaches gives the end of the interval. `NaN`
 /// everywhere when the effects do not validate.
 ///
 /// With a pressure lag the pressure found is the muscle's (the model's
-/// other effects, bisected as above), and the measured pressure predicted
+/// other effects, searched as above), and the measured pressure predicted
 /// is that plus the lag's lead over the measured history (the measured
 /// pressure minus its lag, [`pam_core::effects::PressureLag`]): the error
 /// is then the muscle's pressure the model needs minus the measured
@@ -199,6 +197,7 @@ pub fn pressure_to_reach(
         return out;
     };
     let t0 = samples.first().map_or(0.0, |s| s.t_s);
+    let mut guess = samples.first().map_or(0.0, |s| s.pressure_mpa as f32);
     for (i, s) in samples.iter().enumerate() {
         let (t, l) = ((s.t_s - t0) as f32, s.load_n as f32);
         let branch = branches.and_then(|b| b.get(i)).copied();
@@ -207,25 +206,8 @@ pub fn pressure_to_reach(
             None => sim.step(t, p, l),
         };
         let reach = |p: f32| step(&mut sim.clone(), p);
-        let target = s.contraction as f32;
-        let (mut lo, mut hi) = (0.0f32, pressure_limit_mpa.max(0.0));
-        let found = if !target.is_finite() {
-            None
-        } else if reach(lo) >= target {
-            Some(lo)
-        } else if reach(hi) <= target {
-            Some(hi)
-        } else {
-            for _ in 0..PRESSURE_SEARCH_STEPS {
-                let mid = 0.5 * (lo + hi);
-                if reach(mid) < target {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            Some(0.5 * (lo + hi))
-        };
+        let found = crossing(reach, s.contraction as f32, pressure_limit_mpa, guess);
+        guess = found.unwrap_or(guess);
         out[i] = found.map_or(f64::NAN, f64::from);
         step(&mut sim, found.unwrap_or(s.pressure_mpa as f32));
     }

@@ -194,8 +194,8 @@ impl Setup<'_> {
     /// contraction's ([`Self::residuals_with`]), or on an isometric record
     /// the exact pressure error, the pressure the model needs to reach each
     /// held length minus the measured one
-    /// ([`crate::evaluate::simulate::pressure_to_reach`], 26 bisection
-    /// steps a sample: once per model judged, while the fits run on the
+    /// ([`crate::evaluate::simulate::pressure_to_reach`], a search of
+    /// several simulator steps a sample: once per model judged, while the fits run on the
     /// first-order residual of [`Self::residuals_with`]).
     pub(super) fn judged_residuals(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
         if self.pressure_weight.is_none() {
