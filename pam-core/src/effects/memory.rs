@@ -595,8 +595,8 @@ impl<const N: usize> ReversalStack<N> {
     /// while the offset scale changes (the rate effect): when only the scale
     /// changed since the cached loop, its ends follow it by one Newton step
     /// each on the same equation (eqs. 25/26 with the scaled offset), from
-    /// the cached ends, instead of two bisections ([`branch_contraction`],
-    /// [`SCALED_INVERSE_STEPS`](super::offset::SCALED_INVERSE_STEPS) steps each); a
+    /// the cached ends, instead of two full inverses ([`branch_contraction`],
+    /// up to [`SCALED_INVERSE_STEPS`](super::offset::SCALED_INVERSE_STEPS) steps each); a
     /// new loop's ends are exact. So the ends follow the scale over the
     /// periods with bounded work. The same as [`Self::inverse_pressure_mpa`]
     /// while the scale holds; after a change of 1 % in one period, within
