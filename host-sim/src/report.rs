@@ -3,6 +3,7 @@
 use crate::bench::{Run, TraceRow};
 use crate::rig::Sample;
 use pam_lab::report::axes;
+use pam_lab::report::plot::tick_format;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -151,7 +152,7 @@ pub fn plot_scenario(
     c.configure_mesh()
         .x_desc(axes::TIME_S)
         .y_desc("tracking error (fraction of rest length)")
-        .y_label_formatter(&|v| format!("{v:.4}"))
+        .y_label_formatter(&tick_format(-emax, emax))
         .draw()?;
     c.draw_series(std::iter::once(Rectangle::new(
         [(0.0, -emax), (warmup_s.min(t_end), emax)],
