@@ -143,6 +143,19 @@ struct FileInfo {
     body_paths: Vec<Vec<String>>,
 }
 
+/// The keywords after which a name is defined, not used.
+const DEFINING: [&str; 9] = [
+    "struct",
+    "enum",
+    "fn",
+    "trait",
+    "type",
+    "const",
+    "static",
+    "union",
+    "macro_rules",
+];
+
 fn is_ident_char(c: char) -> bool {
     c.is_alphanumeric() || c == '_'
 }
@@ -244,18 +257,7 @@ fn file_info(module: Vec<String>, text: &str) -> FileInfo {
                 // lowercase name otherwise is a field or a variable.
                 let next = chars[j..].iter().find(|c| !c.is_whitespace());
                 let method = i > 0 && chars[i - 1] == '.';
-                let defined_here = matches!(
-                    previous_word.as_str(),
-                    "struct"
-                        | "enum"
-                        | "fn"
-                        | "trait"
-                        | "type"
-                        | "const"
-                        | "static"
-                        | "union"
-                        | "macro_rules"
-                );
+                let defined_here = DEFINING.contains(&previous_word.as_str());
                 if !method
                     && !defined_here
                     && (first.starts_with(|c: char| c.is_uppercase())
@@ -264,18 +266,7 @@ fn file_info(module: Vec<String>, text: &str) -> FileInfo {
                     body_idents.insert(first.to_string());
                 }
             }
-            if matches!(
-                previous_word.as_str(),
-                "struct"
-                    | "enum"
-                    | "fn"
-                    | "trait"
-                    | "type"
-                    | "const"
-                    | "static"
-                    | "union"
-                    | "macro_rules"
-            ) {
+            if DEFINING.contains(&previous_word.as_str()) {
                 defs.insert(word.to_string());
             }
             // A lifetime (`'static`) is no keyword.
