@@ -23,7 +23,7 @@ const FIRST_STEP_FRACTION: f32 = 1.0 / 4096.0;
 /// Evaluations after which the search stops whatever the bracket: three
 /// times what the safeguard can spend on top of a bisection's 26 steps, a
 /// bound no well-behaved response reaches.
-const MAX_EVALUATIONS: usize = 120;
+pub const MAX_EVALUATIONS: usize = 120;
 
 /// The input in `0..=limit` where `response` reaches `target`, searched
 /// from `guess`:
