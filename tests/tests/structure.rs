@@ -33,19 +33,90 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-/// The file's code without its comments and without its test modules
-/// (a `#[cfg(test)]` item and everything in its braces).
+/// The file's code with its comments removed and its string and char
+/// literals emptied (one pass: line and nested block comments; plain, raw
+/// and byte strings; char literals, not lifetimes), then without its test
+/// modules (a `#[cfg(test)]` item and everything in its braces).
 fn code_of(text: &str) -> String {
-    let mut code = String::new();
-    for line in text.lines() {
-        let line = match line.find("//") {
-            // A `//` inside a string (a URL) is rare in these sources and
-            // cuts only the rest of that line.
-            Some(i) => &line[..i],
-            None => line,
-        };
-        code.push_str(line);
-        code.push('\n');
+    let chars: Vec<char> = text.chars().collect();
+    let at = |i: usize| chars.get(i).copied().unwrap_or('\0');
+    let mut code = String::with_capacity(text.len());
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        if c == '/' && at(i + 1) == '/' {
+            while i < chars.len() && chars[i] != '\n' {
+                i += 1;
+            }
+        } else if c == '/' && at(i + 1) == '*' {
+            let mut depth = 0usize;
+            while i < chars.len() {
+                if chars[i] == '/' && at(i + 1) == '*' {
+                    depth += 1;
+                    i += 2;
+                } else if chars[i] == '*' && at(i + 1) == '/' {
+                    depth -= 1;
+                    i += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    i += 1;
+                }
+            }
+            code.push(' ');
+        } else if (c == 'r' || (c == 'b' && at(i + 1) == 'r'))
+            && (i == 0 || !is_ident_char(chars[i - 1]))
+            && {
+                let j = if c == 'b' { i + 2 } else { i + 1 };
+                let mut k = j;
+                while at(k) == '#' {
+                    k += 1;
+                }
+                at(k) == '"'
+            }
+        {
+            // A raw string: r"…", r#"…"#, br"…".
+            let mut k = if c == 'b' { i + 2 } else { i + 1 };
+            let mut hashes = 0;
+            while at(k) == '#' {
+                hashes += 1;
+                k += 1;
+            }
+            k += 1;
+            while k < chars.len() && !(chars[k] == '"' && (1..=hashes).all(|h| at(k + h) == '#')) {
+                k += 1;
+            }
+            i = k + 1 + hashes;
+            code.push_str("\"\"");
+        } else if c == '"' {
+            i += 1;
+            while i < chars.len() && chars[i] != '"' {
+                i += if chars[i] == '\\' { 2 } else { 1 };
+            }
+            i += 1;
+            code.push_str("\"\"");
+        } else if c == '\'' && (i == 0 || !is_ident_char(chars[i - 1])) {
+            // A char literal ('a', '\n', '\u{7f}'), or a lifetime ('a).
+            let close = if at(i + 1) == '\\' {
+                (i + 3..(i + 12).min(chars.len())).find(|&k| chars[k] == '\'')
+            } else {
+                (at(i + 2) == '\'').then_some(i + 2)
+            };
+            match close {
+                Some(k) => {
+                    code.push_str("' '");
+                    i = k + 1;
+                }
+                None => {
+                    code.push(c);
+                    i += 1;
+                }
+            }
+        } else {
+            code.push(c);
+            i += 1;
+        }
     }
     // Cut `#[cfg(test)]` items: from the attribute to the end of the item's
     // braces (or its `;`).
@@ -79,14 +150,20 @@ fn code_of(text: &str) -> String {
     out
 }
 
-/// `a::{b, c::{d, e}}` → `a::b`, `a::c::d`, `a::c::e`.
+/// `a::{b, c::{d, e as f}}` → `a::b`, `a::c::d`, `a::c::e as f` (an alias
+/// kept after ` as `).
 fn expand(tree: &str) -> Vec<String> {
-    let tree: String = tree.chars().filter(|c| !c.is_whitespace()).collect();
+    let tree = tree.trim();
     let Some(open) = tree.find('{') else {
-        return vec![tree];
+        // One path, its whitespace gone but for an alias's ` as `.
+        return vec![match tree.split_once(" as ") {
+            Some((p, a)) => format!("{} as {}", squeeze(p), squeeze(a)),
+            None => squeeze(tree),
+        }];
     };
-    let prefix = &tree[..open];
-    let inner = &tree[open + 1..tree.rfind('}').unwrap_or(tree.len())];
+    let prefix = squeeze(&tree[..open]);
+    let close = tree.rfind('}').filter(|&c| c > open).unwrap_or(tree.len());
+    let inner = &tree[open + 1..close];
     let (mut parts, mut depth, mut start) = (Vec::new(), 0usize, 0usize);
     for (i, c) in inner.char_indices() {
         match c {
@@ -102,9 +179,19 @@ fn expand(tree: &str) -> Vec<String> {
     parts.push(&inner[start..]);
     parts
         .into_iter()
-        .filter(|p| !p.is_empty())
-        .flat_map(|p| expand(p).into_iter().map(move |s| format!("{prefix}{s}")))
+        .filter(|p| !p.trim().is_empty())
+        .flat_map(|p| {
+            expand(p)
+                .into_iter()
+                .map(|s| format!("{prefix}{s}"))
+                .collect::<Vec<_>>()
+        })
         .collect()
+}
+
+/// `s` without whitespace.
+fn squeeze(s: &str) -> String {
+    s.chars().filter(|c| !c.is_whitespace()).collect()
 }
 
 /// The module path of a source file (`src/a/b.rs` and `src/a/b/mod.rs`:
@@ -160,44 +247,8 @@ fn is_ident_char(c: char) -> bool {
     c.is_alphanumeric() || c == '_'
 }
 
-/// The code with its string and char literals emptied.
-fn without_literals(code: &str) -> String {
-    let mut out = String::with_capacity(code.len());
-    let mut chars = code.chars().peekable();
-    let mut prev = ' ';
-    while let Some(c) = chars.next() {
-        if c == '"' {
-            out.push('"');
-            let mut escaped = false;
-            for d in chars.by_ref() {
-                if d == '"' && !escaped {
-                    break;
-                }
-                escaped = d == '\\' && !escaped;
-            }
-            out.push('"');
-        } else if c == '\'' && !is_ident_char(prev) {
-            // A char literal ('a', '\n'), not a lifetime ('a).
-            let look: String = chars.clone().take(4).collect();
-            match look.find('\'') {
-                Some(n) if n > 0 => {
-                    for _ in 0..=n {
-                        chars.next();
-                    }
-                    out.push_str("' '");
-                }
-                _ => out.push(c),
-            }
-        } else {
-            out.push(c);
-        }
-        prev = c;
-    }
-    out
-}
-
 fn file_info(module: Vec<String>, text: &str) -> FileInfo {
-    let code = without_literals(&code_of(text));
+    let code = code_of(text);
     let mut uses = Vec::new();
     let mut body = String::new();
     let mut rest = code.as_str();
@@ -397,11 +448,13 @@ fn path_definer(
 fn import_graph(src: &Path) -> BTreeMap<PathBuf, BTreeSet<PathBuf>> {
     let mut files = Vec::new();
     rust_files(src, &mut files);
-    // `src/bin/x.rs` files are crates of their own; a file named `tests.rs`
-    // is a test module.
+    // `src/bin/x.rs` files, and `main.rs` beside a `lib.rs`, are crates of
+    // their own; a file named `tests.rs` is a test module.
+    let has_lib = src.join("lib.rs").is_file();
     let modules: Modules = files
         .into_iter()
         .filter(|f| !f.starts_with(src.join("bin")) && f.file_stem().is_none_or(|s| s != "tests"))
+        .filter(|f| !(has_lib && *f == src.join("main.rs")))
         .map(|f| {
             let module = module_of(src, &f);
             let info = file_info(
@@ -507,46 +560,78 @@ fn no_two_files_of_a_crate_import_each_other_in_a_loop() {
     assert!(loops.is_empty(), "import loops:\n{}", loops.join("\n"));
 }
 
+/// The loop [`a_cycle`] finds in a crate of `files` (path under `src/`,
+/// text), written to a temporary folder.
+fn loop_in(files: &[(&str, &str)]) -> Option<Vec<PathBuf>> {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("pam-structure-{}-{n}", std::process::id()));
+    let src = dir.join("src");
+    for (path, text) in files {
+        let p = src.join(path);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, text).unwrap();
+    }
+    let cycle = a_cycle(&import_graph(&src));
+    std::fs::remove_dir_all(&dir).unwrap();
+    cycle
+}
+
 #[test]
 fn the_loop_finder_finds_a_parent_and_child_that_import_each_other() {
-    // The check itself, on a crate written here: `a/mod.rs` uses `B` of
+    // The check itself, on crates written here: `a/mod.rs` uses `B` of
     // `a/b.rs`, which takes a helper from `a/mod.rs`.
-    let dir = std::env::temp_dir().join(format!("pam-structure-{}", std::process::id()));
-    let src = dir.join("src");
-    std::fs::create_dir_all(src.join("a")).unwrap();
-    std::fs::write(src.join("lib.rs"), "pub mod a;\npub use a::B;\n").unwrap();
-    let parent = |uses_b: bool| {
-        format!(
-            "//! super::x in a comment\npub mod b;\npub use b::B;\npub fn helper() -> u8 {{ {} }}\n",
-            if uses_b { "B::ONE" } else { "1" }
-        )
+    let parent = |body: &str| {
+        format!("//! super::x in a comment\npub mod b;\npub use b::B;\n{body}\npub fn helper() -> u8 {{ 1 }}\n")
     };
     let child =
         "pub struct B;\nimpl B { pub const ONE: u8 = 1; pub fn f() -> u8 { super::helper() } }\n";
-    std::fs::write(src.join("a/b.rs"), child).unwrap();
+    let lib = ("lib.rs", "pub mod a;\npub use a::B;\n");
     // A re-export alone is no import: no loop.
-    std::fs::write(src.join("a/mod.rs"), parent(false)).unwrap();
-    let re_export_only = a_cycle(&import_graph(&src));
+    assert_eq!(
+        loop_in(&[lib, ("a/mod.rs", &parent("")), ("a/b.rs", child)]),
+        None
+    );
     // The parent uses what it re-exports: the loop.
-    std::fs::write(src.join("a/mod.rs"), parent(true)).unwrap();
-    let used = a_cycle(&import_graph(&src));
-    // The child's way back only in a comment, a string and a test module.
-    std::fs::write(
-        src.join("a/b.rs"),
-        "pub struct B;\n// super::helper()\nconst S: &str = \"super::helper\";\nimpl B { pub const ONE: u8 = 1; }\n#[cfg(test)]\nmod tests { fn t() { super::super::helper(); } }\n",
-    )
-    .unwrap();
-    let commented = a_cycle(&import_graph(&src));
-    std::fs::remove_dir_all(&dir).unwrap();
-    assert_eq!(re_export_only, None);
-    let used = used.expect("the loop a/mod.rs <-> a/b.rs");
+    let used = loop_in(&[
+        lib,
+        ("a/mod.rs", &parent("pub fn one() -> u8 { B::ONE }")),
+        ("a/b.rs", child),
+    ])
+    .expect("the loop a/mod.rs <-> a/b.rs");
     assert_eq!(used.len(), 3, "{used:?}");
     assert!(
         used.iter()
             .all(|p| p.ends_with("a/mod.rs") || p.ends_with("a/b.rs")),
         "{used:?}"
     );
-    assert_eq!(commented, None);
+    // The same through an alias.
+    let aliased = parent("use self::b::B as Bee;\npub fn one() -> u8 { Bee::ONE }");
+    assert!(loop_in(&[lib, ("a/mod.rs", &aliased), ("a/b.rs", child)]).is_some());
+    // The child's way back only in comments, strings and a test module:
+    // no loop.
+    let quiet =
+        "pub struct B;\n// super::helper()\n/* super::helper() /* nested */ super::helper() */\n\
+                 const S: &str = \"super::helper() // \\\" super::helper()\";\n\
+                 const R: &str = r#\"super::helper() \"# ;\nconst C: char = '{';\n\
+                 impl B { pub const ONE: u8 = 1; }\n\
+                 #[cfg(test)]\nmod tests { fn t() { super::super::helper(); } }\n";
+    let with_b = parent("pub fn one() -> u8 { B::ONE }");
+    assert_eq!(
+        loop_in(&[lib, ("a/mod.rs", &with_b), ("a/b.rs", quiet)]),
+        None
+    );
+    // A loop through the crate root, with a binary beside it.
+    let root = loop_in(&[
+        ("lib.rs", "pub mod a;\npub fn root() -> u8 { a::B::ONE }\n"),
+        ("main.rs", "fn main() {}\n"),
+        ("a/mod.rs", "pub mod b;\npub use b::B;\n"),
+        (
+            "a/b.rs",
+            "pub struct B;\nimpl B { pub const ONE: u8 = 1; pub fn f() -> u8 { crate::root() } }\n",
+        ),
+    ]);
+    assert!(root.is_some_and(|c| c.iter().any(|p| p.ends_with("lib.rs"))));
 }
 
 fn lines_of(path: &Path) -> usize {

@@ -926,8 +926,8 @@ const NEWTON_H: f32 = 1e-4;
 /// How a minor loop's ends are solved for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Ends {
-    /// [`branch_contraction`] (a bisection at a scale other than 1): what
-    /// the forward model computes.
+    /// [`branch_contraction`] (its Newton iteration at a scale other than
+    /// 1): what the forward model computes.
     Exact,
     /// Newton steps on the same equation (the feedforward's bounded path).
     Newton,
@@ -955,7 +955,7 @@ impl Ends {
 }
 
 /// `steps` Newton steps from `x0` on `CM(x) ± offset_scale·y_hys(x) = p`
-/// (the equation [`branch_contraction`] bisects), with a difference
+/// (the equation [`branch_contraction`] solves), with a difference
 /// quotient for the slope; each step clamped to the stroke, and none taken
 /// where the slope is not positive (the curve is not increasing there).
 /// Pressure clamped to `[0, Pmax]`, the scale as in [`branch_contraction`].

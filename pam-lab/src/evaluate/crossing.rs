@@ -35,8 +35,10 @@ pub const MAX_EVALUATIONS: usize = 120;
 ///   `response(lo) < target <= response(hi)`, narrowed to
 ///   `limit·2⁻²⁶` or to two neighbouring `f32`s.
 ///
-/// `None` when `target` or `limit` is not finite. `response` must not fall
-/// as its input rises; it is called at most [`MAX_EVALUATIONS`] times.
+/// `None` when `target` or `limit` is not finite, or `response` gives NaN.
+/// `response` must not fall as its input rises; it is called at most
+/// [`MAX_EVALUATIONS`] times (the bracket then is as far as it got: a
+/// bound no well-behaved response reaches).
 pub fn crossing(
     mut response: impl FnMut(f32) -> f32,
     target: f32,
@@ -62,14 +64,20 @@ pub fn crossing(
     let fg = f(g);
     let (mut lo, mut f_lo, mut hi, mut f_hi);
     if fg.is_nan() {
-        return Some(g);
+        return None;
     }
     if fg < 0.0 {
+        if g >= limit {
+            return Some(limit);
+        }
         (lo, f_lo) = (g, fg);
         loop {
             let next = (lo + step).min(limit);
             let fn_ = f(next);
-            if fn_ >= 0.0 || fn_.is_nan() {
+            if fn_.is_nan() {
+                return None;
+            }
+            if fn_ >= 0.0 {
                 (hi, f_hi) = (next, fn_);
                 break;
             }
@@ -80,10 +88,16 @@ pub fn crossing(
             step *= 4.0;
         }
     } else {
+        if g <= 0.0 {
+            return Some(0.0);
+        }
         (hi, f_hi) = (g, fg);
         loop {
             let next = (hi - step).max(0.0);
             let fn_ = f(next);
+            if fn_.is_nan() {
+                return None;
+            }
             if fn_ < 0.0 {
                 (lo, f_lo) = (next, fn_);
                 break;
@@ -118,7 +132,7 @@ pub fn crossing(
         };
         let fp = f(p);
         if fp.is_nan() {
-            return Some(p);
+            return None;
         }
         if fp < 0.0 {
             (lo, f_lo) = (p, fp);
@@ -236,5 +250,18 @@ mod tests {
         assert_eq!(crossing(r, f32::NAN, 0.6, 0.3), None);
         assert_eq!(crossing(r, 0.1, f32::INFINITY, 0.3), None);
         assert_eq!(crossing(r, 0.1, -1.0, 0.3), Some(0.0));
+        // A response that gives NaN anywhere the search looks: no answer.
+        assert_eq!(crossing(|_| f32::NAN, 0.1, 0.6, 0.3), None);
+        assert_eq!(
+            crossing(|p| if p > 0.2 { f32::NAN } else { p }, 0.3, 0.6, 0.1),
+            None
+        );
+        // From a guess at an end, the end is not evaluated twice.
+        let (f, n) = counted(|p: f32| p);
+        assert_eq!(crossing(f, -1.0, 0.6, 0.0), Some(0.0));
+        assert_eq!(n.get(), 1);
+        let (f, n) = counted(|p: f32| p);
+        assert_eq!(crossing(f, 2.0, 0.6, 0.6), Some(0.6));
+        assert_eq!(n.get(), 1);
     }
 }

@@ -137,8 +137,8 @@ pub fn check_record(record: &Record, purpose: Purpose) -> Result<(), DataError> 
 /// are rated to 0.8 MPa): a record above it is more likely in bar.
 pub const PNEUMATIC_TOP_MPA: f64 = 1.0;
 
-/// Slowest pressure rate, MPa/s, that a record's fastest stretches (the
-/// top percent of its rates) reach on any rig that shows a hysteresis loop:
+/// Slowest pressure rate, MPa/s, that a record's fastest stretch reaches
+/// on any rig that shows a hysteresis loop:
 /// 1 kPa/s, a 0.5 MPa sweep in over 8 minutes. A record logged in
 /// milliseconds shows its rates 1000× too slow (a 0.1 MPa/s ramp as
 /// 0.0001).
@@ -148,9 +148,10 @@ pub const SLOWEST_FAST_RATE_MPA_PER_S: f64 = 0.001;
 /// of single samples is the sensor's noise over one step).
 const RATE_WINDOW: usize = 25;
 
-/// The 99th percentile of the pressure's rate, MPa/s, over
-/// [`RATE_WINDOW`]-sample moving means a window apart; `None` on a record
-/// too short for two windows.
+/// The pressure's fastest rate, MPa/s, between [`RATE_WINDOW`]-sample
+/// moving means a window apart (the means average the sensor's noise
+/// away: a record with one pressure step among hours of holds still shows
+/// that step); `None` on a record too short for two windows.
 fn fast_pressure_rate(s: &[Sample]) -> Option<f64> {
     let k = RATE_WINDOW;
     if s.len() < 2 * k {
@@ -161,20 +162,20 @@ fn fast_pressure_rate(s: &[Sample]) -> Option<f64> {
         sum[i + 1] = sum[i] + x.pressure_mpa;
     }
     let mean = |i: usize| (sum[i + k] - sum[i]) / k as f64;
-    let mut rates: Vec<f64> = (0..s.len() - 2 * k + 1)
+    (0..s.len() - 2 * k + 1)
         .filter_map(|i| {
             let dt = s[i + k].t_s - s[i].t_s;
             (dt > 0.0).then(|| (mean(i + k) - mean(i)).abs() / dt)
         })
-        .collect();
-    quantile(std::mem::take(&mut rates), 0.99)
+        .filter(|r| r.is_finite())
+        .reduce(f64::max)
 }
 
 /// Units a record's values suggest were not the format's, said as
 /// warnings (the values are possible, so not refused): a pressure whose
 /// top (99th percentile) is above [`PNEUMATIC_TOP_MPA`] (bar for MPa); a
-/// time step of a second or more where the pressure's fastest stretches
-/// stay under [`SLOWEST_FAST_RATE_MPA_PER_S`], or over a record of hours
+/// time step of a second or more where the pressure's fastest stretch
+/// stays under [`SLOWEST_FAST_RATE_MPA_PER_S`], or over a record of hours
 /// (milliseconds for seconds: a rig that shows a hysteresis loop samples
 /// far faster and ramps faster).
 pub fn unit_warnings(record: &Record) -> Vec<String> {

@@ -379,6 +379,18 @@ fn time_in_milliseconds_is_told_by_its_slow_pressure_also_on_a_short_record() {
         3 * 3_600,
         1.0
     )));
+    // A creep test: 2 h at 1 Hz, one 0.3 MPa step in a second, held; noise.
+    let creep = record(
+        |i| Sample {
+            t_s: i as f64,
+            load_n: 100.0,
+            pressure_mpa: if i < 600 { 0.1 } else { 0.4 }
+                + 0.001 * (((i * 7_919) % 1_000) as f64 / 500.0 - 1.0),
+            contraction: 0.1,
+        },
+        7_200,
+    );
+    assert!(!warns_of_milliseconds(&creep));
     // A record of hours at a second a sample is still told by its length.
     assert!(warns_of_milliseconds(&triangle(
         0.25,
