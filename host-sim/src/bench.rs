@@ -34,7 +34,7 @@ pub enum Mode {
 }
 
 impl Mode {
-    /// Every mode, in the order the report lists them.
+    /// Every mode.
     pub const ALL: [Mode; 4] = [
         Mode::FeedforwardPi,
         Mode::FeedforwardMemoryPi,

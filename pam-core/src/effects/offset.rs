@@ -5,8 +5,6 @@
 
 use crate::branch::Branch;
 use crate::load_model::LoadModel;
-#[cfg(test)]
-use crate::load_model::INVERSE_TOLERANCE_MPA;
 use crate::math::clamp;
 
 /// Largest factor any effect may put on the ellipse offset `be` of eq. (24).
@@ -118,6 +116,7 @@ fn scaled_branch_contraction(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::load_model::INVERSE_TOLERANCE_MPA;
     use crate::{Coeffs, Params};
 
     /// The 24-step bisection on the forward model the Newton iteration
