@@ -920,9 +920,6 @@ impl Segment {
     }
 }
 
-/// Contraction step of the Newton solver's difference quotient.
-const NEWTON_H: f32 = 1e-4;
-
 /// How a minor loop's ends are solved for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Ends {
@@ -955,10 +952,11 @@ impl Ends {
 }
 
 /// `steps` Newton steps from `x0` on `CM(x) ± offset_scale·y_hys(x) = p`
-/// (the equation [`branch_contraction`] solves), with a difference
-/// quotient for the slope; each step clamped to the stroke, and none taken
-/// where the slope is not positive (the curve is not increasing there).
-/// Pressure clamped to `[0, Pmax]`, the scale as in [`branch_contraction`].
+/// (the equation [`branch_contraction`] solves), with its exact slope
+/// (`LoadModel::branch_and_slope`, the one [`branch_contraction`]'s
+/// iteration takes); each step clamped to the stroke, and none taken where
+/// the slope is not positive (the curve is not increasing there). Pressure
+/// clamped to `[0, Pmax]`, the scale as in [`branch_contraction`].
 fn newton_branch(
     model: &LoadModel,
     pressure_mpa: f32,
@@ -970,21 +968,13 @@ fn newton_branch(
     let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
     let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     let (lo, hi) = (model.root_contraction(), model.max_contraction());
-    let g = |x: f32| model.constraint_pressure_mpa(x) + k * model.offset_mpa(x);
     let mut x = clamp(x0, lo, hi);
     for _ in 0..steps {
-        // The quotient inward at the upper end of the stroke.
-        let h = if x + NEWTON_H <= hi {
-            NEWTON_H
-        } else {
-            -NEWTON_H
-        };
-        let gx = g(x);
-        let slope = (g(x + h) - gx) / h;
+        let (g, slope) = model.branch_and_slope(x, k);
         if !(slope > 0.0) {
             break;
         }
-        x = clamp(x - (gx - p) / slope, lo, hi);
+        x = clamp(x - (g - p) / slope, lo, hi);
     }
     x
 }
