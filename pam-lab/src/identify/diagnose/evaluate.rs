@@ -3,6 +3,9 @@
 use pam_core::{Branch, Coeffs, Effects, TrackerConfig};
 use serde::Serialize;
 
+use std::sync::Arc;
+
+use super::pressure_curves::PressureCurves;
 use super::regimes::Regimes;
 use crate::evaluate::errors::rms_where;
 use crate::evaluate::simulate::InverseTables;
@@ -99,10 +102,10 @@ pub(super) struct Setup<'a> {
     /// The noise floor of the residual: the record's contraction noise,
     /// or on an isometric record (residual in pressure) its pressure noise.
     pub(super) noise_residual: f64,
-    /// Each sample's factor from contraction residual to pressure residual,
-    /// on an isometric record ([`pressure_weights`]); `None`: the residual
-    /// is the contraction's.
-    pub(super) pressure_weight: Option<Vec<f64>>,
+    /// Each sample's static pressure curve, on an isometric record (the
+    /// fits' residual is in pressure, [`PressureCurves`]); `None`: the
+    /// residual is the contraction's.
+    pub(super) pressure_curves: Option<Arc<PressureCurves>>,
     /// Where the joint refit may move `Pmax`: from this (the record's top
     /// pressure, when `Pmax` was measured from it) up to
     /// [`super::refit::PMAX_CEILING_OF_TOP`] times it, or `None`: held (given by
@@ -198,14 +201,10 @@ impl Setup<'_> {
     /// several simulator steps a sample: once per model judged, while the fits run on the
     /// first-order residual of [`Self::residuals_with`]).
     pub(super) fn judged_residuals(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
-        if self.pressure_weight.is_none() {
+        if self.pressure_curves.is_none() {
             return self.residuals_with(coeffs, effects);
         }
-        self.residual_of(
-            &self.predicted_raw(coeffs, effects),
-            |s| s.pressure_mpa,
-            None,
-        )
+        self.residual_of(&self.predicted_raw(coeffs, effects), |s| s.pressure_mpa)
     }
 
     /// The model's prediction of the quantity its residual measures: the
@@ -224,7 +223,7 @@ impl Setup<'_> {
     }
 
     fn predicted_raw(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
-        if self.pressure_weight.is_none() {
+        if self.pressure_curves.is_none() {
             return self.contraction(coeffs, effects);
         }
         crate::evaluate::simulate::pressure_to_reach(
@@ -249,38 +248,50 @@ impl Setup<'_> {
         )
     }
 
-    /// `predicted` minus the measured value (`measured`), times each
-    /// sample's `weight` when given; `NaN` on the excluded samples.
-    fn residual_of(
-        &self,
-        predicted: &[f64],
-        measured: impl Fn(&Sample) -> f64,
-        weight: Option<&[f64]>,
-    ) -> Vec<f64> {
+    /// `predicted` minus the measured value (`measured`); `NaN` on the
+    /// excluded samples.
+    fn residual_of(&self, predicted: &[f64], measured: impl Fn(&Sample) -> f64) -> Vec<f64> {
         predicted
             .iter()
             .zip(self.samples)
             .zip(&self.excluded)
-            .enumerate()
-            .map(|(i, ((p, s), &excluded))| {
-                if excluded {
-                    f64::NAN
-                } else {
-                    weight.map_or(1.0, |w| w[i]) * (p - measured(s))
-                }
-            })
+            .map(
+                |((p, s), &excluded)| {
+                    if excluded {
+                        f64::NAN
+                    } else {
+                        p - measured(s)
+                    }
+                },
+            )
             .collect()
     }
 
     /// The residual the fits run on: measured minus simulated contraction,
-    /// on an isometric record times each sample's pressure weight
-    /// ([`pressure_weights`]: then about the model's pressure minus the
-    /// measured one); `NaN` on the excluded samples.
+    /// or on an isometric record that error carried into pressure along
+    /// the static curve ([`PressureCurves::residual`]: the model's
+    /// pressure minus the measured one where the model is static); `NaN`
+    /// on the excluded samples.
     pub(super) fn residuals_with(&self, coeffs: &Coeffs, effects: Effects) -> Vec<f64> {
         let x = self.contraction(coeffs, effects);
-        self.residual_of(&x, |s| s.contraction, self.pressure_weight.as_deref())
-            .into_iter()
-            .map(|r| -r)
+        let Some(curves) = &self.pressure_curves else {
+            return self
+                .residual_of(&x, |s| s.contraction)
+                .into_iter()
+                .map(|r| -r)
+                .collect();
+        };
+        x.iter()
+            .zip(self.samples)
+            .zip(&self.excluded)
+            .enumerate()
+            .map(|(i, ((&predicted, s), &excluded))| {
+                if excluded {
+                    f64::NAN
+                } else {
+                    curves.residual(i, s.contraction, predicted)
+                }
+            })
             .collect()
     }
 
@@ -343,123 +354,5 @@ impl Setup<'_> {
             },
             res,
         )
-    }
-}
-
-/// Bounds of [`pressure_weights`] around their median: a weight is kept
-/// within this factor of it either way.
-pub const PRESSURE_WEIGHT_SPREAD: f64 = 20.0;
-
-/// An isometric record's residual in pressure, to first order: each
-/// sample's contraction residual times the slope `|dp/dx|` of the static
-/// model (`coeffs` with its static `shape`, when it has one) at the
-/// measured contraction, load and branch (central
-/// difference over 1e-4 of rest length, the chip's `f32` evaluation,
-/// [`ModelCache`](crate::evaluate::errors::ModelCache)). The held length is
-/// the input of an isometric test and the pressure its answer: a model
-/// error in contraction where the curve is steep is a large pressure
-/// error, where it is flat a small one, and the diagnosis weighs them as
-/// the user's pressure does. Fixed per model the candidates are fitted on
-/// (the base model's slopes, or a path's once it carries a static shape:
-/// the shape moves the slope most where the curve is steep), so every
-/// candidate is simulated once per evaluation, as on an isotonic record;
-/// the exact pressure (`pressure_to_reach`) judges the result on
-/// `--validate`. Bounded to [`PRESSURE_WEIGHT_SPREAD`] times the median
-/// either way: at a stroke end the slope is 0 or without bound.
-pub fn pressure_weights(
-    coeffs: &Coeffs,
-    shape: Option<&pam_core::effects::ConstraintShape>,
-    samples: &[Sample],
-    branches: &[Branch],
-    excluded: &[bool],
-) -> Vec<f64> {
-    let mut cache = crate::evaluate::errors::ModelCache::new(coeffs, shape);
-    let h = 1e-4f32;
-    let raw: Vec<f64> = samples
-        .iter()
-        .zip(branches)
-        .map(|(s, &b)| {
-            let (x, l) = (s.contraction as f32, s.load_n as f32);
-            let up = cache.pressure_mpa(x + h, l, b);
-            let down = cache.pressure_mpa(x - h, l, b);
-            f64::from((up - down).abs()) / (2.0 * f64::from(h))
-        })
-        .collect();
-    let mut used: Vec<f64> = raw
-        .iter()
-        .zip(excluded)
-        .filter(|(w, x)| !**x && w.is_finite() && **w > 0.0)
-        .map(|(w, _)| *w)
-        .collect();
-    if used.is_empty() {
-        return vec![1.0; samples.len()];
-    }
-    let mid = used.len() / 2;
-    let (_, median, _) = used.select_nth_unstable_by(mid, f64::total_cmp);
-    let (lo, hi) = (
-        *median / PRESSURE_WEIGHT_SPREAD,
-        *median * PRESSURE_WEIGHT_SPREAD,
-    );
-    raw.iter()
-        .map(|w| if w.is_finite() { w.clamp(lo, hi) } else { hi })
-        .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::evaluate::errors::ModelCache;
-    use pam_core::effects::shape::table::{TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS};
-    use pam_core::effects::{ConstraintShape, StrokeTable};
-    use pam_core::Params;
-
-    #[test]
-    fn the_pressure_weights_are_the_slopes_of_the_model_with_its_static_shape() {
-        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
-        // A stroke table that bends the curve at every load, most near
-        // the stroke's root.
-        let mut knots = [[0.0; TABLE_KNOTS]; TABLE_LOADS];
-        for node in &mut knots {
-            for (j, v) in node.iter_mut().enumerate() {
-                let u = (j + 1) as f32 / TABLE_SEGMENTS as f32;
-                *v = u + 0.9 * u * (1.0 - u);
-            }
-        }
-        let shape = ConstraintShape {
-            table: StrokeTable { knots },
-            ..ConstraintShape::NEUTRAL
-        };
-        shape.validate().unwrap();
-        let m = coeffs.load_model_clamped(200.0);
-        let (x0, x1) = (m.root_contraction(), m.max_contraction());
-        let samples: Vec<Sample> = [0.1f32, 0.5, 0.9]
-            .iter()
-            .map(|f| Sample {
-                t_s: 0.0,
-                load_n: 200.0,
-                pressure_mpa: 0.3,
-                contraction: f64::from(x0 + f * (x1 - x0)),
-            })
-            .collect();
-        let branches = [Branch::Contraction; 3];
-        let excluded = [false; 3];
-        let plain = pressure_weights(&coeffs, None, &samples, &branches, &excluded);
-        let shaped = pressure_weights(&coeffs, Some(&shape), &samples, &branches, &excluded);
-        // Near the root the table changes the slope the residual is
-        // weighed by ...
-        assert!(
-            (shaped[0] / plain[0] - 1.0).abs() > 0.2,
-            "{plain:?} {shaped:?}"
-        );
-        // ... and each weight is the shaped model's own |dp/dx|.
-        let mut cache = ModelCache::new(&coeffs, Some(&shape));
-        let h = 1e-4f32;
-        for (s, w) in samples.iter().zip(&shaped) {
-            let x = s.contraction as f32;
-            let up = cache.pressure_mpa(x + h, 200.0, Branch::Contraction);
-            let down = cache.pressure_mpa(x - h, 200.0, Branch::Contraction);
-            let slope = f64::from((up - down).abs()) / (2.0 * f64::from(h));
-            assert!((w - slope).abs() <= 1e-9 * slope.max(1.0), "{w} {slope}");
-        }
     }
 }

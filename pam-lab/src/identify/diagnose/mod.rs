@@ -66,6 +66,7 @@ pub mod lag;
 mod parallel;
 mod paths;
 mod prepare;
+mod pressure_curves;
 mod refit;
 mod regimes;
 mod report;
@@ -276,14 +277,14 @@ pub fn diagnose_with_progress(
     } else {
         noise.contraction
     };
-    let pressure_weight = isometric.then(|| {
-        evaluate::pressure_weights(
+    let pressure_curves = isometric.then(|| {
+        std::sync::Arc::new(pressure_curves::PressureCurves::new(
             &coeffs,
             base_effects.shape.as_ref(),
             samples,
             &branches,
             &excluded,
-        )
+        ))
     });
     let mut setup = Setup {
         samples,
@@ -295,7 +296,7 @@ pub fn diagnose_with_progress(
         branches,
         corr_len: 1.0,
         noise_residual,
-        pressure_weight,
+        pressure_curves,
         pmax_floor_mpa: match fit.pmax_source {
             crate::identify::fit::PmaxSource::Measured => Some(fit.params.points.max_pressure_mpa),
             crate::identify::fit::PmaxSource::Given => None,

@@ -13,11 +13,14 @@
 //! effect alone. Of the paths kept, the one with the lowest held-out error
 //! is the answer.
 
+use std::sync::Arc;
+
 use pam_core::{Coeffs, Effects, Params};
 
 use super::candidates::{evaluate_candidate, CandidateResult, EffectKind};
 use super::config::DiagnoseConfig;
 use super::evaluate::{ModelErrors, Setup};
+use super::pressure_curves::PressureCurves;
 use super::refit::refit_base;
 use super::report::{PathSummary, Round};
 
@@ -117,18 +120,18 @@ fn candidates_on(
     })
 }
 
-/// On an isometric record, the setup whose first-order pressure weights
-/// are the slopes of `path`'s own static model, when its static shape is
-/// not the base's ([`super::evaluate::pressure_weights`]): a stroke table
-/// steepens the curve near the stroke's root several times over, and a
-/// candidate fitted on the base's slopes there is fitted on the wrong
-/// residual. `None`: the setup's weights are the path's.
+/// On an isometric record, the setup whose pressure curves are `path`'s
+/// own static model's, when its static shape is not the base's
+/// ([`PressureCurves`]): a stroke table steepens the curve near the
+/// stroke's root several times over, and a candidate fitted on the base's
+/// curve there is fitted on the wrong residual. `None`: the setup's curves
+/// are the path's.
 fn on_path_slopes<'a>(setup: &Setup<'a>, path: &Path) -> Option<Setup<'a>> {
-    setup.pressure_weight.as_ref()?;
+    setup.pressure_curves.as_ref()?;
     if path.effects.shape == setup.base_effects.shape {
         return None;
     }
-    let weights = super::evaluate::pressure_weights(
+    let curves = PressureCurves::new(
         &path.coeffs,
         path.effects.shape.as_ref(),
         setup.samples,
@@ -136,7 +139,7 @@ fn on_path_slopes<'a>(setup: &Setup<'a>, path: &Path) -> Option<Setup<'a>> {
         &setup.excluded,
     );
     Some(Setup {
-        pressure_weight: Some(weights),
+        pressure_curves: Some(Arc::new(curves)),
         ..setup.clone()
     })
 }
@@ -144,7 +147,7 @@ fn on_path_slopes<'a>(setup: &Setup<'a>, path: &Path) -> Option<Setup<'a>> {
 /// The candidates not on `path` yet that the record's kind is offered
 /// ([`EffectKind::offered`]).
 fn remaining(setup: &Setup<'_>, path: &Path) -> Vec<EffectKind> {
-    let isometric = setup.pressure_weight.is_some();
+    let isometric = setup.pressure_curves.is_some();
     EffectKind::ALL
         .into_iter()
         .filter(|k| k.offered(isometric) && !k.is_on(&path.effects))

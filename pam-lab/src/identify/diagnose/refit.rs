@@ -233,7 +233,7 @@ mod tests {
             branches,
             corr_len: 1.0,
             noise_residual: 0.0,
-            pressure_weight: None,
+            pressure_curves: None,
             pmax_floor_mpa,
             stroke_bin: super::super::evaluate::stroke_bins(samples),
             base_effects: Effects::NONE,

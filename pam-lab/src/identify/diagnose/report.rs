@@ -81,8 +81,8 @@ pub struct DiagnoseReport {
     pub test_kind: crate::identify::fit::TestKind,
     /// What every RMS of the diagnosis measures: `contraction` (fraction of
     /// rest length), or on an isometric record `pressure (MPa)` (the
-    /// contraction residual through the base model's slope, see
-    /// `evaluate::pressure_weights`).
+    /// pressure the model needs at each held length minus the measured
+    /// one).
     pub residual: &'static str,
     /// The noise floor of that residual: `noise.contraction`, or on an
     /// isometric record `noise.pressure_mpa`.
