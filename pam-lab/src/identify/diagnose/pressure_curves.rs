@@ -11,16 +11,15 @@
 //! curve `P` at that sample's load and branch rises between the two
 //! contractions, `P(x) − P(x̂)`.
 //!
-//! Earlier the fits took the curve's slope at the measured contraction
-//! times `x − x̂` (the tangent). On the public Festo records with fit's
-//! stroke table that tangent is far from the curve where the muscle
-//! starts to pull (forces under 20 N): the table's root is steep and
-//! flattens within a few thousandths of contraction, so 1.6 % of the
-//! training samples carried 97 % of the tangent residual's squares
-//! (0.0695 MPa RMS against the exact 0.0128 on Festo 10 cm), and every
-//! candidate was fitted to them. The curve itself (the secant) is exact for
-//! a static model where `x̂ = P⁻¹(p)`, and follows it to first order
-//! where an effect moves `x̂`.
+//! The curve's slope at the measured contraction times `x − x̂` (the
+//! tangent) is not enough where the curve bends within the error: with
+//! fit's stroke table the public Festo muscle's curve is steep at the
+//! stroke's root and flat a few thousandths further, so on Festo 10 cm the
+//! tangent put 97 % of its squares on the 1.6 % of training samples under
+//! 20 N (0.0695 MPa RMS against the exact 0.0128), and every candidate was
+//! fitted to them. The secant is the exact error where the model is static
+//! (`x̂ = P⁻¹(p)`: 0.0129 there), and follows it to first order where an
+//! effect moves `x̂`.
 //!
 //! Each sample's curve is tabulated once per static model the candidates
 //! are fitted on (the base's, or a path's once it carries a static shape)
