@@ -22,7 +22,7 @@
 //! braid friction is commonly sub-linear in the sliding rate, `n < 1`);
 //! `n = 1` is the linear law. Cost per sample: `n` = 1, 0.5 and 0.75 take
 //! no, one and two square roots (`vsqrt` on the M4F, 14 cycles each); any
-//! other `n` takes pam-core's own power ([`crate::math::powf`]: within
+//! other `n` takes pam-core's own power (`math::powf`: within
 //! 2·10⁻⁶ of the exact power on the law's rates, 115 instructions on the
 //! M4F against `libm::powf`'s 241, bench-m4).
 

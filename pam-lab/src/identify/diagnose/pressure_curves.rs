@@ -93,7 +93,7 @@ impl PressureCurves {
         };
         let (lo, hi) = (f64::from(lo), f64::from(hi));
         let span = hi - lo;
-        if !(span > 0.0) || contraction.is_nan() {
+        if span.is_nan() || span <= 0.0 || contraction.is_nan() {
             return f64::from(row[0]);
         }
         let pos = ((contraction - lo) / span).clamp(0.0, 1.0) * (CURVE_POINTS - 1) as f64;
