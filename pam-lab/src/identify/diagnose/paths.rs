@@ -89,8 +89,8 @@ fn candidates_on(
     cfg: &DiagnoseConfig,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Vec<CandidateResult> {
-    let reweighted = on_path_slopes(setup, path);
-    let setup = reweighted.as_ref().unwrap_or(setup);
+    let on_curves = on_path_curves(setup, path);
+    let setup = on_curves.as_ref().unwrap_or(setup);
     if !path.added.is_empty() {
         progress(&format!("refitting the base with {}", path.label()));
         let (p, c) = refit_base(
@@ -126,7 +126,7 @@ fn candidates_on(
 /// stroke's root several times over, and a candidate fitted on the base's
 /// curve there is fitted on the wrong residual. `None`: the setup's curves
 /// are the path's.
-fn on_path_slopes<'a>(setup: &Setup<'a>, path: &Path) -> Option<Setup<'a>> {
+fn on_path_curves<'a>(setup: &Setup<'a>, path: &Path) -> Option<Setup<'a>> {
     setup.pressure_curves.as_ref()?;
     if path.effects.shape == setup.base_effects.shape {
         return None;
