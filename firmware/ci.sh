@@ -106,6 +106,15 @@ if ! grep -q "blob accepted (156 bytes, version 2, non-local memory, constraint 
   exit 1
 fi
 
+echo "== firmware: QEMU, the self-test with the online adaptation on (feature adapt)"
+out=$(timeout 300 cargo fw-qemu --features adapt 2>&1)
+echo "$out" | grep -E "hysteresis feedforward:|run-pass" | tail -n 3
+if ! grep -q "fault caught in the same step: true" <<<"$out" \
+  || ! grep -qE "hysteresis feedforward: .*stroke scale 0\.9[5-9]|hysteresis feedforward: .*stroke scale 1\.0[0-5]" <<<"$out"; then
+  echo "firmware: the self-test with adaptation failed or its scale left 0.95-1.05 on the model's own muscle" >&2
+  exit 1
+fi
+
 echo "== firmware: QEMU, corrupt coefficient blob must be refused at boot"
 set +e
 out=$(timeout 300 cargo fw-qemu-bad-blob 2>&1)

@@ -18,7 +18,8 @@
 //! Every tick reports to the controller whether it overran (the next tick
 //! arrived before the step finished); `overrun_limit` overruns in a row are
 //! `Fault::Overrun`. Every 10 s the interrupt logs the largest step time in
-//! core cycles and the number of overruns since boot.
+//! core cycles and the number of overruns since boot, and with feature
+//! `adapt` the adapted stroke scale (`controller::adapt`).
 //!
 //! # When things go wrong
 //! * **Stall**: the independent watchdog ([`wiring::WATCHDOG_MS`]) is
@@ -52,7 +53,7 @@ use critical_section::Mutex;
 use defmt_rtt as _;
 use firmware::board::{self, pam_board_control_step, BoardIo, Watchdog};
 use firmware::boot::BootError;
-use firmware::controller::{ControllerConfig, Fault};
+use firmware::controller::{AdaptationConfig, ControllerConfig, Fault};
 use firmware::crash::Exception;
 use firmware::hal::{LoadCell, SafeState, Valve};
 use firmware::{exercise, wiring, Controller};
@@ -106,7 +107,11 @@ fn halt() -> ! {
 
 #[entry]
 fn main() -> ! {
-    let config = ControllerConfig::DEFAULT;
+    let config = ControllerConfig {
+        // Feature `adapt`: the online adaptation of the model's stroke.
+        adaptation: cfg!(feature = "adapt").then_some(AdaptationConfig::DEFAULT),
+        ..ControllerConfig::DEFAULT
+    };
     let safe = config.safety.safe_state;
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
         halt()
@@ -260,6 +265,16 @@ fn control(s: &mut ControlLoop) {
             s.overruns
         );
         s.max_cycles = 0;
+        if let Some(a) = s.ctl.adaptation() {
+            // The adapted parameter, for the host (pam-lab adapt turns it
+            // into a model).
+            defmt::info!(
+                "step {}: adaptation: stroke scale {} after {} samples",
+                s.steps,
+                a.scale(),
+                a.updates()
+            );
+        }
     }
 }
 

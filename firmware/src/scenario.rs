@@ -73,6 +73,9 @@ pub struct Report {
     pub recovery_steps: Option<u32>,
     /// Faults reported other than the injected one.
     pub other_faults: u32,
+    /// The online adaptation's stroke scale at the end (1 without it:
+    /// feature `adapt`).
+    pub stroke_scale: f32,
 }
 
 impl Report {
@@ -196,6 +199,14 @@ pub fn run_on(
 ) -> Result<Report, ConfigError> {
     let mut config = ControllerConfig::DEFAULT;
     config.feedforward = feedforward;
+    if cfg!(feature = "adapt")
+        && matches!(
+            feedforward,
+            Feedforward::Hysteresis | Feedforward::Constraint
+        )
+    {
+        config.adaptation = Some(crate::controller::AdaptationConfig::DEFAULT);
+    }
     let dt_s = config.dt_s;
     let mut ctl = Controller::from_blob(blob, config, LOAD_N)?;
     let bus = SimBus::new();
@@ -228,6 +239,7 @@ pub fn run_on(
         fault_caught: false,
         recovery_steps: None,
         other_faults: 0,
+        stroke_scale: 1.0,
     };
     let mut sum_sq = 0.0f64;
     let mut evaluated = 0u32;
@@ -273,6 +285,7 @@ pub fn run_on(
     if evaluated > 0 {
         report.rms_error = libm_sqrt(sum_sq / f64::from(evaluated)) as f32;
     }
+    report.stroke_scale = ctl.adaptation().map_or(1.0, |a| a.scale());
     Ok(report)
 }
 

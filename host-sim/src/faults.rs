@@ -358,7 +358,12 @@ pub fn reference_at(t_s: f64) -> f64 {
 /// # Panics
 /// If the firmware refuses the default configuration (a bench set-up error).
 pub fn run_case(case: Case, seed: u64) -> FaultRun {
-    let cfg = ControllerConfig::DEFAULT;
+    run_case_with(case, seed, ControllerConfig::DEFAULT)
+}
+
+/// [`run_case`] with the controller configured by `cfg` (the fault suite
+/// with the online adaptation on, `tests/adaptation.rs`).
+pub fn run_case_with(case: Case, seed: u64, cfg: ControllerConfig) -> FaultRun {
     let s = cfg.safety;
     let dt = f64::from(cfg.dt_s);
     let cal = PressureCalibration::ADC12_0_1MPA;

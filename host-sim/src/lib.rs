@@ -29,3 +29,4 @@ pub mod faults;
 pub mod hal_mocks;
 pub mod harness;
 pub mod scenarios;
+pub mod wear;

@@ -10,7 +10,7 @@
 //! gain sweep; the defaults are `ControllerConfig::DEFAULT`'s).
 //! `--no-end-to-end` leaves out the last part (each effect rig
 //! characterised, fitted, diagnosed and tracked with the firmware booted
-//! from the blobs: about 41 s of the run's 42 s).
+//! from the blobs: about 100 s of the run's 115 s on two cores).
 //! Default output folder: `target/host-sim-report/`.
 
 use host_sim::bench::{run, BenchConfig, Mode, Run};
@@ -99,7 +99,7 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&out)?;
 
     println!("host-sim: firmware controller on the simulated McKibben rig (seed {seed})");
-    println!("[1/6] characterisation run (isotonic, 100-600 N) ...");
+    println!("[1/7] characterisation run (isotonic, 100-600 N) ...");
     let samples = host_sim::characterisation_run(seed);
     host_sim::write_samples_csv(&out.join("characterisation.csv"), &samples)?;
     report::plot_characterisation(&out.join("characterisation_loops.svg"), &samples)?;
@@ -108,7 +108,7 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     let mut results: Vec<(Scenario, Run, Run, Run)> = Vec::new();
     let list = scenarios(seed);
     for (i, sc) in list.into_iter().enumerate() {
-        println!("[{}/6] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
+        println!("[{}/7] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
         let pi = run(&sc, Mode::PiOnly, &cfg);
         let ff = run(&sc, Mode::FeedforwardPi, &cfg);
         let mem = run(&sc, Mode::FeedforwardMemoryPi, &cfg);
@@ -227,7 +227,7 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     println!();
-    println!("[5/6] fault injection (host_sim::faults, the runs tests/faults.rs asserts on) ...");
+    println!("[5/7] fault injection (host_sim::faults, the runs tests/faults.rs asserts on) ...");
     let runs: Vec<_> = host_sim::faults::CASES
         .iter()
         .map(|&c| host_sim::faults::run_case(c, seed))
@@ -249,9 +249,43 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
         survey.periods_beyond_bound
     );
     println!();
+    println!("[6/7] the worn muscle: an hour of the scenarios while stroke -15 %, friction +30 %, stiffness -10 % (seeds {seed}-{}) ...", seed + 2);
+    let wear = host_sim::wear::Wear::HOUR;
+    // One seed a thread: each is an hour of simulated muscle.
+    let comparisons = std::thread::scope(|scope| {
+        let runs: Vec<_> = (seed..=seed + 2)
+            .map(|s| {
+                let wear = &wear;
+                scope.spawn(move || {
+                    host_sim::wear::compare(
+                        &BenchConfig::default_with_seed(s),
+                        wear,
+                        &scenarios(s),
+                        firmware::controller::AdaptationConfig::DEFAULT,
+                    )
+                })
+            })
+            .collect();
+        runs.into_iter()
+            .map(|h| {
+                h.join()
+                    .map_err(|_| "a worn-muscle run panicked".to_string())?
+            })
+            .collect::<Result<Vec<_>, String>>()
+    })?;
+    println!();
+    let worn = host_sim::wear::table(&comparisons);
+    print!("{worn}");
+    std::fs::write(out.join("worn.md"), &worn)?;
+    std::fs::write(
+        out.join("worn_trace.csv"),
+        host_sim::wear::trace_csv(&comparisons),
+    )?;
+    report::plot_worn(&out.join("worn.svg"), &comparisons)?;
+    println!();
     if end_to_end {
         println!(
-            "[6/6] end to end: characterise each effect rig, pam-lab fit and diagnose, boot the firmware from each blob, track ..."
+            "[7/7] end to end: characterise each effect rig, pam-lab fit and diagnose, boot the firmware from each blob, track ..."
         );
         let rigs = host_sim::effect_rigs::effect_rigs();
         let scenario_list = scenarios(seed);

@@ -260,6 +260,12 @@ impl Muscle {
         &self.params
     }
 
+    /// Change the parameters, keeping the state (a muscle that wears while
+    /// it works, `crate::wear`).
+    pub fn set_params(&mut self, params: MuscleParams) {
+        self.params = params;
+    }
+
     /// Contraction, fraction of rest length.
     pub fn contraction(&self) -> f64 {
         self.contraction

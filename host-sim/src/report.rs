@@ -508,6 +508,136 @@ pub fn plot_end_to_end(
     Ok(())
 }
 
+/// The worn muscle over the hour: per repetition of the scenarios, the
+/// tracking error of the flashed model and of the adapted one (a
+/// repetition in which the flashed model went to its safe state is drawn
+/// at the panel's top, clipped), the fresh identification's as a dashed
+/// level; below, the adapted stroke scale. One line per seed.
+pub fn plot_worn(
+    path: &Path,
+    comparisons: &[crate::wear::WornComparison],
+) -> Result<(), ReportError> {
+    ensure_font();
+    let root = SVGBackend::new(path, (1000, 760)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (chart_area, legend_area) = root.split_horizontally(760);
+    let panels = chart_area.split_evenly((2, 1));
+    let t_max = comparisons
+        .iter()
+        .flat_map(|c| c.adapted.repetitions.iter().map(|r| r.t_s))
+        .fold(1.0f64, f64::max);
+    // The tracking errors while controlling; a safe-state repetition is
+    // far above and would flatten the rest.
+    let healthy = comparisons
+        .iter()
+        .flat_map(|c| {
+            c.flashed
+                .repetitions
+                .iter()
+                .chain(&c.adapted.repetitions)
+                .map(|r| r.rms_error)
+                .chain([c.fresh_rms])
+        })
+        .filter(|v| *v < 0.02);
+    let e = range(healthy, 0.1);
+    let mut top = ChartBuilder::on(&panels[0])
+        .caption(
+            "The worn muscle: stroke -15 %, friction +30 %, stiffness -10 % over an hour",
+            ("sans-serif", 18),
+        )
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max, e.clone())?;
+    top.configure_mesh()
+        .x_desc("start of the repetition (s)")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_desc("RMS tracking error (contraction)")
+        .y_label_formatter(&tick_format(e.start, e.end))
+        .draw()?;
+    let mut entries = Vec::new();
+    for (i, c) in comparisons.iter().enumerate() {
+        let alpha = 1.0 - 0.25 * i as f64;
+        let flashed = ORANGE.mix(alpha).stroke_width(2);
+        let adapted = BLUE.mix(alpha).stroke_width(2);
+        let fresh = GREEN.mix(alpha).stroke_width(1);
+        let clip = |v: f64| v.min(e.end);
+        top.draw_series(LineSeries::new(
+            c.flashed
+                .repetitions
+                .iter()
+                .map(|r| (r.t_s, clip(r.rms_error))),
+            flashed,
+        ))?;
+        // Repetitions whose error is off the panel (the safe state).
+        top.draw_series(
+            c.flashed
+                .repetitions
+                .iter()
+                .filter(|r| r.rms_error > e.end)
+                .map(|r| TriangleMarker::new((r.t_s, e.end), 7, ORANGE.filled())),
+        )?;
+        top.draw_series(LineSeries::new(
+            c.adapted
+                .repetitions
+                .iter()
+                .map(|r| (r.t_s, clip(r.rms_error))),
+            adapted,
+        ))?;
+        let last = c.adapted.repetitions.last().map_or(t_max, |r| r.t_s);
+        top.draw_series(DashedLineSeries::new(
+            [(last - 600.0, c.fresh_rms), (last, c.fresh_rms)],
+            6,
+            4,
+            fresh,
+        ))?;
+        entries.push((format!("flashed, seed {}", c.seed), flashed));
+        entries.push((format!("adapted, seed {}", c.seed), adapted));
+        entries.push((format!("fresh fit (worn), seed {}", c.seed), fresh));
+    }
+    let s = range(
+        comparisons
+            .iter()
+            .flat_map(|c| {
+                c.adapted
+                    .repetitions
+                    .iter()
+                    .map(|r| f64::from(r.stroke_scale))
+            })
+            .chain([1.0]),
+        0.1,
+    );
+    let mut bottom = ChartBuilder::on(&panels[1])
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max, s.clone())?;
+    bottom
+        .configure_mesh()
+        .x_desc("time (s)")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_desc("adapted stroke scale")
+        .y_label_formatter(&tick_format(s.start, s.end))
+        .draw()?;
+    for (i, c) in comparisons.iter().enumerate() {
+        let adapted = BLUE.mix(1.0 - 0.25 * i as f64).stroke_width(2);
+        bottom.draw_series(LineSeries::new(
+            c.adapted
+                .repetitions
+                .iter()
+                .map(|r| (r.t_s, f64::from(r.stroke_scale))),
+            adapted,
+        ))?;
+    }
+    entries.push((
+        "▲ flashed: off the panel (safe state)".to_string(),
+        WHITE.stroke_width(0),
+    ));
+    legend(&legend_area, &entries)?;
+    root.present()?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,4 +1,4 @@
-//! The three commands of `pam-lab` as library functions: what the binary
+//! The commands of `pam-lab` as library functions: what the binary
 //! runs, and what the fuzz targets (`fuzz/fuzz_targets/fit_record.rs`,
 //! `diagnose_record.rs`) run, so both reach the same code.
 //!
@@ -7,7 +7,8 @@
 //!    [`TrackerConfig::validate`]) before anything is read;
 //! 2. the record read and checked for the command ([`read_record`]:
 //!    located errors, record-level checks);
-//! 3. the work ([`fit_record`], [`diagnose_record`], [`simulate_record`]),
+//! 3. the work ([`fit_record`], [`diagnose_record`], [`simulate_record`],
+//!    [`adapt_model`]),
 //!    whose outputs are bytes in memory;
 //! 4. the outputs staged into one [`OutputSet`] ([`stage_fit`],
 //!    [`stage_diagnose`]) and committed together by the caller.
@@ -470,6 +471,109 @@ pub fn simulate_text(
         }
     }
     text
+}
+
+/// What `pam-lab adapt` made: the adapted model's files, how far the
+/// adapted model is from the scaled flashed one, and (with a record of the
+/// worn muscle) each model's contraction error on it.
+pub struct AdaptOutcome {
+    /// The adapted model and its fit to the scaled samples.
+    pub adapted: crate::identify::adapted::AdaptedModel,
+    /// model.json, model.blob, model_params.rs.
+    pub files: Vec<(&'static str, Vec<u8>)>,
+    /// `(model, contraction RMS)` on the record: the flashed model, the
+    /// adapted one, and `pam-lab fit`'s fresh identification of the record.
+    pub comparison: Option<Vec<(&'static str, f64)>>,
+}
+
+/// `pam-lab adapt`'s work: the flashed `model` (the paper's model) with the
+/// stroke scale the firmware logged, refitted as a model of its own; with
+/// `record`, compared with the flashed model and a fresh `pam-lab fit` of
+/// that record (`fit_cfg`), in contraction RMS over the record.
+pub fn adapt_model(
+    model: &LoadedModel,
+    stroke_scale: f64,
+    record: Option<&Record>,
+    fit_cfg: &FitConfig,
+) -> anyhow::Result<AdaptOutcome> {
+    use crate::identify::adapted::{adapted_model, AdaptError};
+    if model.effects != pam_core::Effects::NONE {
+        let e = &model.effects;
+        let names: Vec<&str> = [
+            (e.memory.is_some(), "non-local memory"),
+            (e.rate.is_some(), "rate dependence"),
+            (e.creep.is_some(), "creep"),
+            (e.width.is_some(), "load-dependent width"),
+            (e.shape.is_some(), "constraint shape"),
+            (e.pressure_lag.is_some(), "pressure lag"),
+        ]
+        .into_iter()
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect();
+        return Err(AdaptError::Effects(names.join(", ")).into());
+    }
+    let adapted = adapted_model(model.coeffs.params(), stroke_scale)?;
+    let origin = format!("pam-lab adapt (stroke scale {stroke_scale})");
+    let files = model_file::model_files(&adapted.params, &pam_core::Effects::NONE, None, &origin)
+        .map_err(|e| anyhow::anyhow!("the adapted model's files: {e}"))?;
+    let comparison = match record {
+        None => None,
+        Some(r) => {
+            let fresh = fit_record(r, fit_cfg, &|_| {})
+                .map_err(|e| anyhow::anyhow!("fit refused the record: {e}"))?;
+            let adapted_coeffs = Coeffs::new(adapted.params)?;
+            let rms = |coeffs: &Coeffs, effects: &pam_core::Effects| {
+                let sim = simulate::simulate(
+                    coeffs,
+                    effects,
+                    TrackerConfig::DEFAULT_PRESSURE,
+                    &r.samples,
+                );
+                let e: Vec<f64> = sim
+                    .iter()
+                    .map(|s| s.error())
+                    .filter(|e| e.is_finite())
+                    .collect();
+                (e.iter().map(|v| v * v).sum::<f64>() / e.len().max(1) as f64).sqrt()
+            };
+            Some(vec![
+                ("flashed", rms(&model.coeffs, &model.effects)),
+                ("adapted", rms(&adapted_coeffs, &pam_core::Effects::NONE)),
+                (
+                    "fresh fit",
+                    rms(&fresh.report.coeffs, &fresh.report.effects()),
+                ),
+            ])
+        }
+    };
+    Ok(AdaptOutcome {
+        adapted,
+        files,
+        comparison,
+    })
+}
+
+/// `pam-lab adapt`'s report.
+pub fn adapt_text(outcome: &AdaptOutcome, stroke_scale: f64, record: Option<&Record>) -> String {
+    let a = &outcome.adapted;
+    let mut s = format!(
+        "adapted model: the flashed model with its stroke scaled by {stroke_scale} about each load's root, \
+         refitted as the paper's model: contraction RMS {:.5} (largest {:.5}) from the scaled model over {} samples\n",
+        a.rms_contraction,
+        a.max_contraction,
+        a.record.len()
+    );
+    if let (Some(rows), Some(r)) = (&outcome.comparison, record) {
+        s.push_str(&format!(
+            "contraction RMS on {} ({} samples):\n",
+            r.source,
+            r.len()
+        ));
+        for (name, rms) in rows {
+            s.push_str(&format!("  {name:<10} {rms:.5}\n"));
+        }
+    }
+    s
 }
 
 #[cfg(test)]

@@ -173,6 +173,28 @@ enum Command {
         #[command(flatten)]
         common: Common,
     },
+    /// Turn the stroke scale the firmware adapted online (its defmt line
+    /// `adaptation: stroke scale S`) into a model of its own: the flashed
+    /// paper model with its stroke scaled, refitted, written as model.json,
+    /// model.blob and model_params.rs; with `--record`, compared with the
+    /// flashed model and a fresh `fit` of that record of the worn muscle.
+    Adapt {
+        /// The flashed model: a model.json or a model.blob (the paper's
+        /// model; the firmware adapts no other).
+        model: PathBuf,
+        /// The adapted stroke scale the controller logged (0.5–1.5).
+        #[arg(long, value_name = "S")]
+        stroke_scale: f64,
+        /// A record of the worn muscle: compare the flashed, the adapted and
+        /// a freshly fitted model on it (contraction RMS).
+        #[arg(long, value_name = "CSV")]
+        record: Option<PathBuf>,
+        /// Output directory (created if missing).
+        #[arg(short, long, default_value = "pam-lab-adapt", value_name = "DIR")]
+        out: PathBuf,
+        #[command(flatten)]
+        common: Common,
+    },
     /// Find where the model and a record disagree, name the missing effect,
     /// add it, and report the held-out error before and after (report.json,
     /// residual.png, loops.png; see pam-lab/DIAGNOSE.md).
@@ -262,6 +284,13 @@ fn main() -> ExitCode {
             };
             run_simulate(&model, &data, &out, plot.as_deref(), config, common)
         }
+        Command::Adapt {
+            model,
+            stroke_scale,
+            record,
+            out,
+            common,
+        } => run_adapt(&model, stroke_scale, record.as_deref(), &out, common),
         Command::Diagnose {
             data,
             out,
@@ -500,6 +529,55 @@ fn run_fit(
     rep.done();
     if !common.quiet {
         print_out(&(commands::fit_text(&outcome, &record, cfg) + &wrote(&written)))?;
+    }
+    Ok(())
+}
+
+fn run_adapt(
+    model: &Path,
+    stroke_scale: f64,
+    record: Option<&Path>,
+    out: &Path,
+    common: Common,
+) -> Result<()> {
+    if !(stroke_scale.is_finite()
+        && pam_lab::identify::adapted::STROKE_SCALE_RANGE.contains(&stroke_scale))
+    {
+        anyhow::bail!("invalid setting `--stroke-scale`: {stroke_scale} is outside 0.5..=1.5");
+    }
+    let mut set = OutputSet::new();
+    set.protect(model);
+    if let Some(r) = record {
+        set.protect(r);
+    }
+    set.into_dir(out)?;
+    set.check_in_dir(out, &["model.json", "model.blob", "model_params.rs"])?;
+    let rep = Reporter::new(common);
+    rep.stage(&format!("reading {}", model.display()));
+    let loaded = pam_lab::export::model_file::load(model)?;
+    let record = match record {
+        Some(r) => {
+            rep.stage(&format!("reading {}", r.display()));
+            Some(commands::read_record(r, Purpose::Fit)?)
+        }
+        None => None,
+    };
+    rep.stage("fitting the adapted model");
+    let outcome = commands::adapt_model(
+        &loaded,
+        stroke_scale,
+        record.as_ref(),
+        &FitConfig::default(),
+    )?;
+    for (name, bytes) in &outcome.files {
+        set.add_bytes(&out.join(name), bytes)?;
+    }
+    let written = set.commit()?;
+    rep.done();
+    if !common.quiet {
+        print_out(
+            &(commands::adapt_text(&outcome, stroke_scale, record.as_ref()) + &wrote(&written)),
+        )?;
     }
     Ok(())
 }

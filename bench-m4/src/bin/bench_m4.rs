@@ -20,7 +20,7 @@ use bench_m4::identified::{GPI4, MEMORY_SHAPE, PAM_PARAMS, PI16, PREISACH16};
 use bench_m4::{GeneralizedPi, GpiTable, PiTable, PrandtlIshlinskii, Preisach, PreisachTable};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use firmware::controller::{Controller, ControllerConfig, Feedforward, Io, Step};
+use firmware::controller::{AdaptationConfig, Controller, ControllerConfig, Feedforward, Io, Step};
 use firmware::hal::{PressureCalibration, ValvePair, ValvePairConfig};
 use firmware::plant::SimBus;
 use firmware::scenario::SimIo;
@@ -657,28 +657,51 @@ fn main() -> ! {
             time_constant_s: 0.02,
         }),
     };
+    // The online adaptation with the paper's model, updating on every
+    // period it may (no settling time, no transient freeze): its slowest
+    // path, the branch inverse and the estimate, on every measured step.
+    let adapting = AdaptationConfig {
+        settle_periods: 0,
+        max_pressure_rate_mpa_per_s: 1.0e6,
+        ..AdaptationConfig::DEFAULT
+    };
     let feedforwards = [
-        ("off", Feedforward::Off),
-        ("constraint", Feedforward::Constraint),
-        ("hysteresis", Feedforward::Hysteresis),
+        ("off", Feedforward::Off, None),
+        ("constraint", Feedforward::Constraint, None),
+        ("hysteresis", Feedforward::Hysteresis, None),
+        ("adapted", Feedforward::Hysteresis, Some(adapting)),
         (
             "memory",
             Feedforward::HysteresisMemory(NonLocalMemory::with_shape(MEMORY_SHAPE)),
+            None,
         ),
-        ("rate", Feedforward::HysteresisEffects(rate)),
-        ("creep", Feedforward::HysteresisEffects(creep)),
-        ("width", Feedforward::HysteresisEffects(width)),
-        ("shape", Feedforward::HysteresisEffects(shape)),
-        ("shape_memory", Feedforward::HysteresisEffects(shape_memory)),
-        ("memory_rate", Feedforward::HysteresisEffects(memory_rate)),
-        ("shape_rate", Feedforward::HysteresisEffects(shape_rate)),
-        ("table", Feedforward::HysteresisEffects(table)),
-        ("table_lag", Feedforward::HysteresisEffects(table_lag)),
-        ("effects", Feedforward::HysteresisEffects(all)),
+        ("rate", Feedforward::HysteresisEffects(rate), None),
+        ("creep", Feedforward::HysteresisEffects(creep), None),
+        ("width", Feedforward::HysteresisEffects(width), None),
+        ("shape", Feedforward::HysteresisEffects(shape), None),
+        (
+            "shape_memory",
+            Feedforward::HysteresisEffects(shape_memory),
+            None,
+        ),
+        (
+            "memory_rate",
+            Feedforward::HysteresisEffects(memory_rate),
+            None,
+        ),
+        (
+            "shape_rate",
+            Feedforward::HysteresisEffects(shape_rate),
+            None,
+        ),
+        ("table", Feedforward::HysteresisEffects(table), None),
+        ("table_lag", Feedforward::HysteresisEffects(table_lag), None),
+        ("effects", Feedforward::HysteresisEffects(all), None),
     ];
-    for (name, ff) in feedforwards {
+    for (name, ff, adaptation) in feedforwards {
         let mut cfg = ControllerConfig::DEFAULT;
         cfg.feedforward = black_box(ff);
+        cfg.adaptation = black_box(adaptation);
         let Ok(base) = Controller::new(coeffs, cfg, 200.0) else {
             fail("controller refused");
         };

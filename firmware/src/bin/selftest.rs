@@ -118,12 +118,13 @@ fn on_event(k: u32, step: &Step) {
 fn report(name: &str, r: &Report) {
     log!(
         info,
-        "{}: max |error| {} (bound {}), rms {}, over {} steps",
+        "{}: max |error| {} (bound {}), rms {}, over {} steps, stroke scale {}",
         name,
         r.max_error,
         scenario::MAX_ERROR_BOUND,
         r.rms_error,
-        r.steps
+        r.steps,
+        r.stroke_scale
     );
 }
 

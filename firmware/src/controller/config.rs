@@ -3,6 +3,7 @@
 //! ([`ControllerConfig::validate`], called by `Controller::new`); the step
 //! never checks a setting again.
 
+use super::adapt::AdaptationConfig;
 use crate::hal::{HalConfigError, SafeState};
 use pam_core::effects::{Effects, NonLocalMemory, MAX_STEP_S};
 use pam_core::TrackerConfig;
@@ -234,6 +235,10 @@ pub struct ControllerConfig {
     pub tracker: TrackerConfig,
     /// Safety monitor.
     pub safety: SafetyConfig,
+    /// Online adaptation of the model's stroke ([`super::adapt`]); `None`:
+    /// the flashed model as it is. Only with [`Feedforward::Hysteresis`] or
+    /// [`Feedforward::Constraint`] (the paper's model).
+    pub adaptation: Option<AdaptationConfig>,
 }
 
 impl ControllerConfig {
@@ -290,6 +295,7 @@ impl ControllerConfig {
             latch_trips: 3,
             latch_window_periods: 10_000,
         },
+        adaptation: None,
     };
 
     /// Check every field; the first bad one is named.
@@ -309,6 +315,16 @@ impl ControllerConfig {
             Feedforward::HysteresisEffects(e) => e.validate().is_ok() && self.dt_s <= MAX_STEP_S,
             Feedforward::HysteresisMemory(_) => self.dt_s <= MAX_STEP_S,
             _ => true,
+        };
+        let adaptation_ok = match &self.adaptation {
+            Some(a) => {
+                a.is_valid(self.dt_s)
+                    && matches!(
+                        self.feedforward,
+                        Feedforward::Hysteresis | Feedforward::Constraint
+                    )
+            }
+            None => true,
         };
         // One row per setting: (holds, setting). The first that fails is named.
         let rules = [
@@ -355,6 +371,7 @@ impl ControllerConfig {
             (effects_ok, Setting::FeedforwardEffects),
             (s.recovery_samples >= 1, Setting::RecoverySamples),
             (s.latch_window_periods >= 1, Setting::LatchWindowPeriods),
+            (adaptation_ok, Setting::Adaptation),
         ];
         for (holds, setting) in rules {
             if !holds {
@@ -416,6 +433,10 @@ pub enum Setting {
     RecoverySamples,
     /// `latch_window_periods`: ≥ 1.
     LatchWindowPeriods,
+    /// `adaptation`: every field in its range
+    /// ([`AdaptationConfig::is_valid`]), with the paper's model as
+    /// feedforward.
+    Adaptation,
 }
 
 impl Setting {
@@ -443,6 +464,7 @@ impl Setting {
             Setting::MemoryShape | Setting::FeedforwardEffects => "feedforward",
             Setting::RecoverySamples => "recovery_samples",
             Setting::LatchWindowPeriods => "latch_window_periods",
+            Setting::Adaptation => "adaptation",
         }
     }
 
@@ -470,6 +492,9 @@ impl Setting {
                 "effects must pass pam-core's validation, with dt_s at most 1 s"
             }
             Setting::RecoverySamples | Setting::LatchWindowPeriods => "must be >= 1",
+            Setting::Adaptation => {
+                "needs bound in (0, 0.5], memory_s >= 10 dt_s, max_rate_per_s and max_pressure_rate_mpa_per_s > 0, min_stroke_fraction in [0, 1), pressure_filter_s >= 0, and feedforward Hysteresis or Constraint"
+            }
         }
     }
 }

@@ -45,6 +45,18 @@ pub(super) fn inverted_effects(feedforward: &Feedforward) -> Option<Effects> {
     }
 }
 
+/// The flashed model's contraction for the set-point `x_ref` on a stroke
+/// scaled by `scale` about the root ([`super::adapt`]), clamped to the
+/// model's stroke; `x_ref` itself at scale 1.
+#[inline(always)]
+fn adapted_target(model: &LoadModel, scale: f32, x_ref: f32) -> f32 {
+    if scale == 1.0 {
+        return x_ref;
+    }
+    let r = model.root_contraction();
+    clamp(r + (x_ref - r) / scale, r, model.max_contraction())
+}
+
 /// What the law commands for one period.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Command {
@@ -67,6 +79,9 @@ pub(super) struct Law {
     max_command_mpa: f32,
     inverse: Option<ModelInverse>,
     state: InverseState<MEMORY_DEPTH>,
+    /// The adapted stroke scale ([`super::adapt`]; 1: the flashed model),
+    /// used by the paper's feedforward.
+    pub stroke_scale: f32,
 }
 
 impl Law {
@@ -83,6 +98,7 @@ impl Law {
             max_command_mpa: cfg.safety.command_limit_mpa(pmax_mpa),
             inverse,
             state: InverseState::default(),
+            stroke_scale: 1.0,
         })
     }
 
@@ -151,10 +167,16 @@ impl Law {
             model.max_contraction(),
         );
         let feedforward_mpa = match cfg.feedforward {
-            // eqs. (25)/(26): the pressure that holds x_ref on the active branch.
-            Feedforward::Hysteresis => model.pressure_mpa(x_ref, branch),
+            // eqs. (25)/(26): the pressure that holds x_ref on the active
+            // branch (on the adapted stroke: the flashed model's contraction
+            // `R + (x_ref − R)/s`).
+            Feedforward::Hysteresis => {
+                model.pressure_mpa(adapted_target(model, self.stroke_scale, x_ref), branch)
+            }
             // eq. (21): the constraint model, between the two branches.
-            Feedforward::Constraint => model.constraint_pressure_mpa(x_ref),
+            Feedforward::Constraint => {
+                model.constraint_pressure_mpa(adapted_target(model, self.stroke_scale, x_ref))
+            }
             Feedforward::Off => 0.0,
             // eqs. (25)/(26) with the effects inverted (pam-core's
             // `ModelInverse`: creep, shape, width and rate, minor loops).

@@ -7,6 +7,7 @@
 //! | [`io`] | [`Io`] (the hardware), [`Sample`], [`ValveCommand`] |
 //! | [`monitor`] | the safety monitor: [`Fault`], the rule table, responses, the model as a virtual sensor, the latch |
 //! | [`law`] | the control law: feedforward, PI with anti-windup, inner pressure loop |
+//! | [`adapt`] | online adaptation of the model's stroke: bounded RLS with forgetting, frozen in transients and faults, [`Fault::Drifted`] at its bound |
 //!
 //! One [`Controller::step`] per control period (`dt_s`):
 //!
@@ -54,6 +55,7 @@
 //! operation (no indexing by runtime values, no division by a runtime value
 //! other than in `f32`, which saturates to ±inf or NaN and is clamped).
 
+pub mod adapt;
 pub mod config;
 pub mod io;
 pub mod law;
@@ -61,6 +63,7 @@ pub mod monitor;
 #[cfg(test)]
 mod tests;
 
+pub use adapt::{Adaptation, AdaptationConfig};
 pub use config::{ConfigError, ControllerConfig, Feedforward, SafetyConfig, Setting};
 pub use io::{Io, Sample, ValveCommand};
 pub use law::{MEMORY_DEPTH, MEMORY_INVERSE_STEPS};
@@ -148,6 +151,8 @@ pub struct Controller {
     build_units: u16,
     /// Updates since construction (wrapping), for the latch window.
     period: u32,
+    /// The online adaptation, when configured.
+    adaptation: Option<Adaptation>,
 }
 
 impl Controller {
@@ -185,6 +190,7 @@ impl Controller {
             ),
             ki_dt: config.ki_mpa_per_s * config.dt_s,
             build_units: table_build_units(&config.feedforward),
+            adaptation: config.adaptation.map(|a| Adaptation::new(&a, config.dt_s)),
             coeffs,
             config,
             tracker,
@@ -218,6 +224,11 @@ impl Controller {
     /// Whether the safe state is latched.
     pub fn latched(&self) -> bool {
         self.monitor.latched()
+    }
+
+    /// The online adaptation's state (its stroke scale), when configured.
+    pub fn adaptation(&self) -> Option<&Adaptation> {
+        self.adaptation.as_ref()
     }
 
     /// The outer loop's integral term, MPa.
@@ -350,6 +361,43 @@ impl Controller {
             self.enter_fault(f, &mut step);
             return step;
         }
+        // The online adaptation, on checked readings, before the model check
+        // sees the contraction: one branch in a period without it. The
+        // check judges `judged` (the measured contraction, mapped to the
+        // flashed model's on a stroke that shrank); the law the measured one.
+        let judged = match &mut self.adaptation {
+            None => contraction,
+            Some(a) => {
+                let switched =
+                    step.tracker.load_switch.is_some() || step.tracker.branch_switch.is_some();
+                let outcome = if self.fault.is_some() || switched {
+                    // Faulted, recovering, or the model or branch just
+                    // changed: frozen for the settling time.
+                    a.freeze();
+                    adapt::Outcome::Held
+                } else if self.tracker.inverse_ready() {
+                    a.update(
+                        self.tracker.model(),
+                        self.tracker.branch(),
+                        pressure_mpa,
+                        contraction,
+                        self.monitor.last_flow.abs() >= 1.0,
+                    )
+                } else {
+                    // A new load's tables are being built: its inverse
+                    // would be the slow table-free one.
+                    adapt::Outcome::Held
+                };
+                self.law.stroke_scale = a.scale();
+                if outcome == adapt::Outcome::AtBound {
+                    self.enter_fault(Fault::Drifted, &mut step);
+                    self.monitor.latch();
+                    step.latched = true;
+                    return step;
+                }
+                a.checked_contraction(self.tracker.model(), contraction)
+            }
+        };
         let band = self.law.model_band(
             self.coeffs.params(),
             self.tracker.model(),
@@ -359,7 +407,7 @@ impl Controller {
             self.tracker.model(),
             &band,
             pressure_mpa,
-            contraction,
+            judged,
             self.fault.is_none(),
         );
         step.model_excess = excess;

@@ -88,6 +88,11 @@ pub enum Fault {
     /// The image was reset by the independent watchdog (a stalled control
     /// loop); set at boot with [`Controller::latch`](super::Controller::latch).
     Watchdog,
+    /// The online adaptation's stroke scale reached its bound
+    /// ([`AdaptationConfig::bound`](super::adapt::AdaptationConfig::bound)):
+    /// the muscle has drifted beyond its model. Latched at once: re-identify
+    /// the muscle (a reboot returns to the flashed model).
+    Drifted,
 }
 
 impl core::fmt::Display for SensorId {
@@ -119,6 +124,7 @@ impl core::fmt::Display for Fault {
             Fault::Implausible(Check::Vent) => f.write_str("exhaust open but pressure not falling"),
             Fault::Overrun => f.write_str("control periods overran in a row"),
             Fault::Watchdog => f.write_str("reset by the independent watchdog"),
+            Fault::Drifted => f.write_str("the muscle has drifted beyond its model: re-identify"),
         }
     }
 }

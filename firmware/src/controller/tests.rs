@@ -1098,3 +1098,148 @@ fn every_setting_names_itself_and_its_requirement() {
         Err(ConfigError::Invalid(Setting::ImplausibleLagS))
     );
 }
+
+/// [`synthetic`] with the online adaptation updating from the first
+/// period.
+fn adapting() -> ControllerConfig {
+    ControllerConfig {
+        adaptation: Some(AdaptationConfig {
+            settle_periods: 0,
+            ..AdaptationConfig::DEFAULT
+        }),
+        ..synthetic()
+    }
+}
+
+/// Readings of a muscle whose stroke is `scale` times the model's, holding
+/// a slow pressure ramp at period `k`.
+fn scaled_muscle(c: &Controller, scale: f32, k: usize) -> (Sample, f32) {
+    let m = c.tracker().model();
+    let p = 0.15 + 0.2 * ((k % 4000) as f32 / 4000.0);
+    let r = m.root_contraction();
+    let x = r + scale * (m.contraction(p, Branch::Contraction) - r);
+    (good(p, x, 200.0), x)
+}
+
+#[test]
+fn the_adaptation_learns_the_stroke_and_the_feedforward_uses_it() {
+    let mut c = controller_with(adapting());
+    for k in 0..20_000 {
+        let (s, x) = scaled_muscle(&c, 0.9, k);
+        let step = c.update(&s, x);
+        assert_eq!(step.fault, None);
+    }
+    let scale = c.adaptation().unwrap().scale();
+    assert!((0.9 - 1e-3..0.99).contains(&scale), "{scale}");
+    // The feedforward holds a set-point on the adapted stroke: the flashed
+    // model's pressure for `R + (x − R)/s`.
+    let m = c.tracker().model().clone();
+    let x = 0.12;
+    let (s, _) = scaled_muscle(&c, 0.9, 0);
+    let step = c.update(
+        &Sample {
+            contraction: Ok(x),
+            ..s
+        },
+        x,
+    );
+    let scale = c.adaptation().unwrap().scale();
+    let want = m.pressure_mpa(
+        m.root_contraction() + (x - m.root_contraction()) / scale,
+        step.branch,
+    );
+    assert!(
+        (step.feedforward_mpa - want).abs() < 1e-4,
+        "{} vs {want}",
+        step.feedforward_mpa
+    );
+    // Not the flashed model's own pressure for x.
+    assert!((step.feedforward_mpa - m.pressure_mpa(x, step.branch)).abs() > 0.005);
+}
+
+#[test]
+fn the_adaptation_is_frozen_while_a_fault_is_active_and_while_recovering() {
+    let mut c = controller_with(adapting());
+    for k in 0..3_000 {
+        let (s, x) = scaled_muscle(&c, 0.9, k);
+        c.update(&s, x);
+    }
+    let before = c.adaptation().unwrap().scale();
+    assert!(before < 1.0);
+    // A pressure read error for 100 periods (the other readings those of
+    // a muscle at half the stroke), then good readings: nothing may move
+    // until the recovery run is over.
+    let recovery = usize::from(c.config().safety.recovery_samples);
+    for k in 0..100 {
+        let (s, x) = scaled_muscle(&c, 0.5, k);
+        let bad = Sample {
+            pressure_mpa: Err(SensorErrorKind::Timeout),
+            ..s
+        };
+        assert!(c.update(&bad, x).fault.is_some());
+        assert_eq!(c.adaptation().unwrap().scale(), before);
+    }
+    for k in 0..recovery {
+        let (s, x) = scaled_muscle(&c, 0.9, k);
+        c.update(&s, x);
+        assert_eq!(
+            c.adaptation().unwrap().scale(),
+            before,
+            "period {k} of the recovery"
+        );
+    }
+    // The test's configuration has no settling time: once recovered, and
+    // the pressure filter past the jump from where the fault left it (a
+    // transient), the estimate moves again.
+    for k in 0..500 {
+        let (s, x) = scaled_muscle(&c, 0.9, recovery + k);
+        assert_eq!(c.update(&s, x).fault, None);
+    }
+    assert!(c.adaptation().unwrap().scale() < before);
+}
+
+#[test]
+fn a_muscle_beyond_the_bound_is_the_drift_fault_latched_with_valves_safe() {
+    let mut c = controller_with(adapting());
+    let mut fault = None;
+    for k in 0..200_000 {
+        let (s, x) = scaled_muscle(&c, 0.6, k);
+        let step = c.update(&s, x);
+        if let Some(f) = step.new_fault {
+            fault = Some((f, step.command, step.latched));
+            break;
+        }
+    }
+    let (f, command, latched) = fault.expect("never reported");
+    assert_eq!(f, Fault::Drifted);
+    assert_eq!(command, ValveCommand::Safe(c.config().safety.safe_state));
+    assert!(latched && c.latched());
+    // Latched: good readings do not bring control back.
+    for k in 0..1_000 {
+        let (s, x) = scaled_muscle(&c, 1.0, k);
+        assert!(c.update(&s, x).fault.is_some());
+    }
+}
+
+#[test]
+fn adaptation_is_refused_with_a_feedforward_other_than_the_papers() {
+    let memory = ControllerConfig {
+        feedforward: Feedforward::HysteresisMemory(NonLocalMemory::with_shape(1.0)),
+        ..adapting()
+    };
+    assert_eq!(
+        Controller::new(Coeffs::new(Params::DEFAULT).unwrap(), memory, 200.0).err(),
+        Some(ConfigError::Invalid(Setting::Adaptation))
+    );
+    let bad = ControllerConfig {
+        adaptation: Some(AdaptationConfig {
+            bound: 0.0,
+            ..AdaptationConfig::DEFAULT
+        }),
+        ..ControllerConfig::DEFAULT
+    };
+    assert_eq!(
+        bad.validate(),
+        Err(ConfigError::Invalid(Setting::Adaptation))
+    );
+}
