@@ -427,12 +427,20 @@ pub fn simulate_text(
         .filter(|k| k.is_on(effects))
         .map(diagnose::EffectKind::name)
         .collect();
+    let dynamic: Vec<&str> = named
+        .iter()
+        .copied()
+        .filter(|n| *n != diagnose::EffectKind::ConstraintShape.name())
+        .collect();
     let with = if named.is_empty() {
         String::from("the paper's model")
+    } else if dynamic.is_empty() {
+        format!("the paper's model + {}", named.join(" + "))
     } else {
         format!(
-            "the paper's model + {} (the pressure error is the paper's part alone)",
-            named.join(" + ")
+            "the paper's model + {} (the pressure error is the static model's, its shape in, {} left out)",
+            named.join(" + "),
+            dynamic.join(" + ")
         )
     };
     let mut text = format!(
