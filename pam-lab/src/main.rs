@@ -164,12 +164,15 @@ enum Command {
         /// Tracker direction deadband on the pressure, MPa.
         #[arg(long, default_value_t = TrackerConfig::DEFAULT_PRESSURE.direction_deadband, value_name = "MPA")]
         deadband: f32,
-        /// Load change that switches the active model, N.
-        #[arg(long, default_value_t = TrackerConfig::DEFAULT_PRESSURE.load_threshold_n, value_name = "N")]
-        load_threshold: f32,
-        /// Samples a load change must persist before the model switches.
-        #[arg(long, default_value_t = TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples, value_name = "N")]
-        debounce: u16,
+        /// Load change that switches the active model, N [default: 20, the
+        /// firmware's; on an isometric record twice the load's noise, at
+        /// least 0.5, as fit and diagnose evaluate it].
+        #[arg(long, value_name = "N")]
+        load_threshold: Option<f32>,
+        /// Samples a load change must persist before the model switches
+        /// [default: 5; 1 on an isometric record].
+        #[arg(long, value_name = "N")]
+        debounce: Option<u16>,
         #[command(flatten)]
         common: Common,
     },
@@ -279,10 +282,13 @@ fn main() -> ExitCode {
         } => {
             let config = TrackerConfig {
                 direction_deadband: deadband,
-                load_threshold_n: load_threshold,
-                load_debounce_samples: debounce,
+                load_threshold_n: load_threshold
+                    .unwrap_or(TrackerConfig::DEFAULT_PRESSURE.load_threshold_n),
+                load_debounce_samples: debounce
+                    .unwrap_or(TrackerConfig::DEFAULT_PRESSURE.load_debounce_samples),
             };
-            run_simulate(&model, &data, &out, plot.as_deref(), config, common)
+            let given = (load_threshold.is_some(), debounce.is_some());
+            run_simulate(&model, &data, &out, plot.as_deref(), config, given, common)
         }
         Command::Adapt {
             model,
@@ -588,6 +594,7 @@ fn run_simulate(
     out: &Path,
     plot: Option<&Path>,
     config: TrackerConfig,
+    (threshold_given, debounce_given): (bool, bool),
     common: Common,
 ) -> Result<()> {
     config.validate().map_err(|e| {
@@ -625,6 +632,21 @@ fn run_simulate(
     let record = commands::read_record(data, Purpose::Simulate)?;
     for w in pam_lab::record::unit_warnings(&record) {
         warn(&w);
+    }
+    // An isometric record's load is a force that moves every sample: the
+    // model follows it as fit and diagnose evaluate it, unless told.
+    let mut config = config;
+    if pam_lab::identify::fit::detect_test(&record.samples)
+        == pam_lab::identify::fit::TestKind::Isometric
+    {
+        let load_noise = pam_lab::record::noise_std(record.samples.iter().map(|s| s.load_n));
+        let follow = pam_lab::evaluate::simulate::following_the_force(config, load_noise);
+        if !threshold_given {
+            config.load_threshold_n = follow.load_threshold_n;
+        }
+        if !debounce_given {
+            config.load_debounce_samples = follow.load_debounce_samples;
+        }
     }
     rep.stage("simulating");
     let (sim, warnings) = commands::simulate_record(&loaded, config, &record)

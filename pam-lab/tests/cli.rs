@@ -593,3 +593,54 @@ fn simulate_writes_its_errors_as_model_minus_measured() {
     assert!((x - 0.01).abs() < 0.002, "median contraction error {x}");
     assert!(p < -0.005, "median pressure error {p} MPa");
 }
+
+/// The number after `label` in `text`, up to the next space.
+fn number_after(text: &str, label: &str) -> f64 {
+    let at = text
+        .find(label)
+        .unwrap_or_else(|| panic!("no `{label}` in:\n{text}"))
+        + label.len();
+    text[at..]
+        .split_whitespace()
+        .next()
+        .and_then(|v| v.trim_end_matches(',').parse().ok())
+        .unwrap_or_else(|| panic!("no number after `{label}` in:\n{text}"))
+}
+
+#[test]
+fn simulate_judges_an_isometric_record_as_fit_does() {
+    // The model fit writes for an isometric record (with its stroke table),
+    // simulated on the same record: the pressure error under load is the
+    // one fit reports, not the bare paper model's at a load model 20 N
+    // behind the force (6.6x fit's before simulate followed the force and
+    // carried the shape).
+    let dir = tempfile::tempdir().unwrap();
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/isometric.csv");
+    let fit_dir = dir.path().join("fit");
+    let (ok, fit_out, err) = pam_lab(&[
+        "fit",
+        data,
+        "--holdout",
+        "none",
+        "--no-plot",
+        "-o",
+        fit_dir.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let fitted = number_after(&fit_out, "training pressure error RMS ");
+    let model = fit_dir.join("model.json");
+    let sim = dir.path().join("sim.csv");
+    let (ok, sim_out, err) = pam_lab(&[
+        "simulate",
+        model.to_str().unwrap(),
+        data,
+        "-o",
+        sim.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let simulated = number_after(&sim_out, "as fit leaves them out): pressure error RMS ");
+    assert!(
+        simulated <= 1.25 * fitted,
+        "simulate {simulated} MPa vs fit {fitted} MPa\n{sim_out}"
+    );
+}

@@ -36,17 +36,16 @@ pub fn denoise_pressure(samples: &[Sample], half: usize) -> Vec<Sample> {
 /// no effect explains.
 ///
 /// An isometric record's load is the measured force, which moves with the
-/// pressure on every sample: the load model follows it within twice its
-/// noise (at least 0.5 N) from the first sample, or the model would run up
-/// to 20 N behind the muscle (on the Festo muscle, 30 kPa of pressure).
+/// pressure on every sample: the load model follows it
+/// ([`crate::evaluate::simulate::following_the_force`]).
 pub(super) fn tracker_config(noise_mpa: f64, load_noise_n: f64, isometric: bool) -> TrackerConfig {
     let mut cfg = TrackerConfig::DEFAULT_PRESSURE;
     cfg.direction_deadband = (3.0 * noise_mpa).max(0.002) as f32;
-    if load_noise_n < 1.0 || isometric {
+    if load_noise_n < 1.0 {
         cfg.load_debounce_samples = 1;
     }
     if isometric {
-        cfg.load_threshold_n = (2.0 * load_noise_n).max(0.5) as f32;
+        cfg = crate::evaluate::simulate::following_the_force(cfg, load_noise_n);
     }
     cfg
 }
