@@ -158,7 +158,8 @@ enum Command {
         /// Output CSV (`-` for stdout).
         #[arg(short, long, default_value = "simulated.csv", value_name = "FILE")]
         out: PathBuf,
-        /// Also draw measured and predicted contraction and the error (PNG).
+        /// Also draw measured and predicted contraction and the error (PNG);
+        /// on an isometric record the pressure, its slack samples left out.
         #[arg(long, value_name = "PNG")]
         plot: Option<PathBuf>,
         /// Tracker direction deadband on the pressure, MPa.
@@ -636,9 +637,9 @@ fn run_simulate(
     // An isometric record's load is a force that moves every sample: the
     // model follows it as fit and diagnose evaluate it, unless told.
     let mut config = config;
-    if pam_lab::identify::fit::detect_test(&record.samples)
-        == pam_lab::identify::fit::TestKind::Isometric
-    {
+    let isometric = pam_lab::identify::fit::detect_test(&record.samples)
+        == pam_lab::identify::fit::TestKind::Isometric;
+    if isometric {
         let load_noise = pam_lab::record::noise_std(record.samples.iter().map(|s| s.load_n));
         let follow = pam_lab::evaluate::simulate::following_the_force(config, load_noise);
         if !threshold_given {
@@ -659,8 +660,16 @@ fn run_simulate(
     }
     if let Some(p) = plot {
         rep.stage("plotting");
+        // An isometric test's plot is in pressure, its slack samples left
+        // out as fit leaves them out.
+        let slack = isometric.then(|| {
+            pam_lab::identify::fit::slack_mask(
+                &record.samples,
+                pam_lab::identify::fit::TestKind::Isometric,
+            )
+        });
         set.add_via_path(p, |tmp| {
-            pam_lab::report::plot::simulate_plot(tmp, &record.source, &sim)
+            pam_lab::report::plot::simulate_plot(tmp, &record.source, &sim, slack.as_deref())
         })?;
     }
     let written = set.commit()?;

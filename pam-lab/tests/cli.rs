@@ -630,14 +630,19 @@ fn simulate_judges_an_isometric_record_as_fit_does() {
     let fitted = number_after(&fit_out, "training pressure error RMS ");
     let model = fit_dir.join("model.json");
     let sim = dir.path().join("sim.csv");
+    let png = dir.path().join("sim.png");
     let (ok, sim_out, err) = pam_lab(&[
         "simulate",
         model.to_str().unwrap(),
         data,
         "-o",
         sim.to_str().unwrap(),
+        "--plot",
+        png.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
+    // Drawn in pressure (the slack samples left out): a PNG is written.
+    assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
     let simulated = number_after(&sim_out, "as fit leaves them out): pressure error RMS ");
     assert!(
         simulated <= 1.25 * fitted,

@@ -34,7 +34,7 @@ use crate::record::Record;
 
 const SIZE: (u32, u32) = (1400, 800);
 /// Width of the legend column beside a chart, pixels: legends never cover data.
-const LEGEND_W: u32 = 230;
+const LEGEND_W: u32 = 290;
 
 type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
 
@@ -349,32 +349,89 @@ fn isometric_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
     Ok(())
 }
 
-/// Measured and predicted contraction over time, and the error (model −
-/// measured contraction, [`SimSample::error`]).
-pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()> {
+/// `simulate`'s plot: measured and predicted over time, and the error
+/// (model − measured) below. On an isotonic record the contraction the
+/// model reaches from the measured pressure and load; on an isometric one
+/// (`isometric_slack`: its slack samples, left out as fit leaves them out)
+/// the pressure the model needs at the held contraction and the measured
+/// force, the quantity an isometric test measures.
+pub fn simulate_plot(
+    path: &Path,
+    source: &str,
+    sim: &[SimSample],
+    isometric_slack: Option<&[bool]>,
+) -> Result<()> {
     if sim.is_empty() {
         return Err(anyhow!("plot: nothing to plot"));
     }
+    type Pick = fn(&SimSample) -> f64;
+    let (measured, predicted, error, value_axis, error_axis, what): (Pick, Pick, Pick, _, _, _) =
+        match isometric_slack {
+            None => (
+                |s| s.measured_contraction,
+                |s| s.predicted_contraction,
+                |s| s.error(),
+                axes::CONTRACTION,
+                axes::CONTRACTION_ERROR,
+                "the contraction from measured pressure and load",
+            ),
+            Some(_) => (
+                |s| s.pressure_mpa,
+                |s| s.predicted_pressure_mpa,
+                |s| s.pressure_error_mpa(),
+                axes::PRESSURE_MPA,
+                axes::PRESSURE_ERROR_MPA,
+                "the pressure at the held contraction and measured force (slack samples left out)",
+            ),
+        };
+    let shown =
+        |i: usize| isometric_slack.is_none_or(|slack| !slack.get(i).copied().unwrap_or(false));
+    // Runs of consecutive shown samples, each drawn as its own line (no
+    // line across the slack samples between them).
+    let mut runs: Vec<Vec<usize>> = Vec::new();
     let thin = (sim.len() / MAX_POINTS).max(1);
+    for i in (0..sim.len()).step_by(thin) {
+        if shown(i) {
+            match runs.last_mut() {
+                Some(r) if r.last().is_some_and(|&j| j + thin == i) => r.push(i),
+                _ => runs.push(vec![i]),
+            }
+        }
+    }
+    if runs.is_empty() {
+        return Err(anyhow!("plot: no sample under load to plot"));
+    }
     let t0 = sim[0].t_s;
     let t1 = sim[sim.len() - 1].t_s.max(t0 + 1e-9);
-    let (ymin, ymax) = sim.iter().fold((f64::MAX, f64::MIN), |(a, b), s| {
-        (
-            a.min(s.measured_contraction).min(s.predicted_contraction),
-            b.max(s.measured_contraction).max(s.predicted_contraction),
-        )
-    });
-    let emax = sim.iter().map(|s| s.error().abs()).fold(1e-6, f64::max);
+    let finite = |v: f64| v.is_finite();
+    let (ymin, ymax) = runs
+        .iter()
+        .flatten()
+        .fold((f64::MAX, f64::MIN), |(a, b), &i| {
+            let (m, p) = (measured(&sim[i]), predicted(&sim[i]));
+            (
+                [m, p].into_iter().filter(|v| finite(*v)).fold(a, f64::min),
+                [m, p].into_iter().filter(|v| finite(*v)).fold(b, f64::max),
+            )
+        });
+    let (ymin, ymax) = if ymin <= ymax {
+        (ymin, ymax)
+    } else {
+        (0.0, 1.0)
+    };
+    let pad = 0.03 * (ymax - ymin).max(1e-6);
+    let emax = runs
+        .iter()
+        .flatten()
+        .map(|&i| error(&sim[i]).abs())
+        .filter(|v| v.is_finite())
+        .fold(1e-6, f64::max);
     ensure_font();
     (|| -> Result<()> {
-        let tmp = path;
-        let root = BitMapBackend::new(tmp, SIZE).into_drawing_area();
+        let root = BitMapBackend::new(path, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
         let root = root
-            .titled(
-                &format!("{source}: simulated from measured pressure and load"),
-                ("sans-serif", 22),
-            )
+            .titled(&format!("{source}: simulated, {what}"), ("sans-serif", 22))
             .map_err(e)?;
         let (root, legend_area) = root.split_horizontally(SIZE.0 - LEGEND_W);
         legend(
@@ -387,7 +444,7 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
         )?;
         let (top, bottom) = root.split_vertically(480);
         let tt = tick_format(t0, t1);
-        let yr = (ymin - 0.005)..(ymax + 0.005);
+        let yr = (ymin - pad)..(ymax + pad);
         let yt = tick_format(yr.start, yr.end);
         let mut c1 = ChartBuilder::on(&top)
             .margin(15)
@@ -397,25 +454,11 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
             .map_err(e)?;
         c1.configure_mesh()
             .x_desc(axes::TIME_S)
-            .y_desc(axes::CONTRACTION)
+            .y_desc(value_axis)
             .x_label_formatter(&tt)
             .y_label_formatter(&yt)
             .draw()
             .map_err(e)?;
-        c1.draw_series(LineSeries::new(
-            sim.iter()
-                .step_by(thin)
-                .map(|s| (s.t_s, s.measured_contraction)),
-            BLACK.mix(0.6),
-        ))
-        .map_err(e)?;
-        c1.draw_series(LineSeries::new(
-            sim.iter()
-                .step_by(thin)
-                .map(|s| (s.t_s, s.predicted_contraction)),
-            color(1),
-        ))
-        .map_err(e)?;
         let et = tick_format(-1.05 * emax, 1.05 * emax);
         let mut c2 = ChartBuilder::on(&bottom)
             .margin(15)
@@ -425,16 +468,20 @@ pub fn simulate_plot(path: &Path, source: &str, sim: &[SimSample]) -> Result<()>
             .map_err(e)?;
         c2.configure_mesh()
             .x_desc(axes::TIME_S)
-            .y_desc(axes::CONTRACTION_ERROR)
+            .y_desc(error_axis)
             .x_label_formatter(&tt)
             .y_label_formatter(&et)
             .draw()
             .map_err(e)?;
-        c2.draw_series(LineSeries::new(
-            sim.iter().step_by(thin).map(|s| (s.t_s, s.error())),
-            color(0),
-        ))
-        .map_err(e)?;
+        for run in &runs {
+            let line = |f: Pick| run.iter().map(move |&i| (sim[i].t_s, f(&sim[i])));
+            c1.draw_series(LineSeries::new(line(measured), BLACK.mix(0.6)))
+                .map_err(e)?;
+            c1.draw_series(LineSeries::new(line(predicted), color(1)))
+                .map_err(e)?;
+            c2.draw_series(LineSeries::new(line(error), color(0)))
+                .map_err(e)?;
+        }
         root.present().map_err(e)?;
         Ok(())
     })()
