@@ -355,7 +355,8 @@ fn a_sensor_ahead_of_the_muscle_is_diagnosed_as_a_pressure_lag() {
     // the lag's time constant. Not a time constant of creep either.
     assert!((0.025..=0.5).contains(&tau), "{tau}");
     // The model with the lag predicts the other test's pressure better than
-    // the reference surface, which has no lag (0.56× measured).
+    // the reference surface, which has no lag (0.72× measured; the lead is
+    // the model's own, `pam_lab::evaluate::simulate::lag_lead`).
     let v = &report["validation"];
     let model = v["model"]["pressure_rms_mpa"].as_f64().unwrap();
     let reference = v["reference_rms_mpa"].as_f64().unwrap();
