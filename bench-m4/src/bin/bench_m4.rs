@@ -603,7 +603,7 @@ fn main() -> ! {
     // What `pam-lab fit` writes for a muscle outside the paper's cubic
     // (host-sim's rigs, the Festo set): the stroke table alone, here the
     // one it writes for host-sim's coulomb rig (seed 1); then with the
-    // pressure lag `diagnose` adds to it on the Festo muscle at 40 cm
+    // pressure lag `diagnose` adds where a sensor sits ahead of the muscle
     // (23 ms, blob version 4).
     let table = Effects {
         shape: Some(ConstraintShape {

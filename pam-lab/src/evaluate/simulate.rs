@@ -176,7 +176,8 @@ pub fn run_record(
 /// own lead, `p_measured − lag(p_measured)`, instead compared the model
 /// with the measured pressure through the lag, a smoothed target, and
 /// leaked the measurement into the prediction: on Festo 40 cm, test 10,
-/// it read 0.76× the reference surface where this reads 0.9–1.0×.)
+/// it read 0.76× the reference surface; from the model's own pressures the
+/// lag cuts 5.7 % of the held-out error there.)
 pub fn pressure_to_reach(
     coeffs: &Coeffs,
     effects: &Effects,
