@@ -105,8 +105,10 @@ impl EffectKind {
 
     /// Starting points of the fit, in the unbounded coordinates of
     /// [`Self::apply`]; `max_ramp_rate` is the record's fastest ramp,
-    /// MPa/s (the rate law's saturation).
-    pub(super) fn starts(self, max_ramp_rate: f64) -> Vec<Vec<f64>> {
+    /// MPa/s (the rate law's saturation); `rest_seen`: whether the training
+    /// part holds the pressure after steps long enough to show the loop at
+    /// rest (else the rate law is held to [`RATE_EXPONENT_WITHOUT_REST`]).
+    pub(super) fn starts(self, max_ramp_rate: f64, rest_seen: bool) -> Vec<Vec<f64>> {
         match self {
             // A rescaled branch that merges within 0.03 of contraction, and
             // a quicker blend that is not limited.
@@ -120,6 +122,7 @@ impl EffectKind {
             // them: only the few samples after a step see the saturation).
             EffectKind::RateDependence => RATE_EXPONENTS
                 .iter()
+                .filter(|&&n| rest_seen || n == RATE_EXPONENT_WITHOUT_REST)
                 .flat_map(|&n| {
                     [logit(0.05), logit(0.9)].map(|sat| {
                         vec![
@@ -242,6 +245,17 @@ impl EffectKind {
 /// Exponents of the rate law the diagnosis tries: the ones pam-core
 /// evaluates with square roots (`powf` is a software routine on the M4).
 pub const RATE_EXPONENTS: [f64; 3] = [0.5, 0.75, 1.0];
+
+/// The rate law's one exponent on a record whose training part never holds
+/// the pressure: linear. A sub-linear law's slope is infinite at rest, so
+/// a record of ramps alone lets its factor at rest fall to anything below
+/// what the slowest ramp shows: on host-sim's rate rig (viscous damping,
+/// Maxwell-slip friction) diagnose fitted 0.00 at exponent 0.75, a loop
+/// that vanishes where a set-point rests, and its blob tracked the three
+/// scenarios 129–161 % of fit's, tripping the model check on the triangle.
+/// Linear, the factor at rest is the slowest ramps' (0.34 there): 104–142 %
+/// and no trip.
+pub const RATE_EXPONENT_WITHOUT_REST: f64 = 1.0;
 
 /// The rate filter's time constant from its unbounded coordinate: logistic
 /// over `[0.02, 1]` s.
@@ -524,7 +538,10 @@ pub(super) fn evaluate_candidate(
             kind,
             current,
             model.1,
-            kind.starts(setup.regimes.max_ramp_rate_mpa_per_s),
+            kind.starts(
+                setup.regimes.max_ramp_rate_mpa_per_s,
+                setup.rest_in_training,
+            ),
             cfg,
         );
         let (mut base_params, mut coeffs) = (model.0, model.1);
@@ -717,7 +734,7 @@ mod tests {
                 assert!(e.validate().is_ok(), "{n} {t}: {e:?}");
             }
         }
-        for start in EffectKind::RateDependence.starts(0.3) {
+        for start in EffectKind::RateDependence.starts(0.3, true) {
             let r = EffectKind::RateDependence
                 .apply(Effects::NONE, &start)
                 .rate
@@ -727,6 +744,16 @@ mod tests {
             // Saturating just above the fastest ramp or near a step's rate.
             let m = r.max_rate_mpa_per_s;
             assert!((m > 0.3 && m < 0.4) || (m > 2.0 && m <= 5.0), "{r:?}");
+        }
+        // Without holds in training, the linear law alone.
+        let linear = EffectKind::RateDependence.starts(0.3, false);
+        assert!(!linear.is_empty());
+        for start in linear {
+            let r = EffectKind::RateDependence
+                .apply(Effects::NONE, &start)
+                .rate
+                .unwrap();
+            assert_eq!(f64::from(r.exponent), RATE_EXPONENT_WITHOUT_REST);
         }
         for m in [0.0, -1.0, 0.3, 99.0, f64::NAN] {
             for t in [-50.0, 0.0, 50.0] {

@@ -96,6 +96,9 @@ pub(super) struct Setup<'a> {
     pub(super) heldout: Vec<bool>,
     pub(super) train_idx: Vec<usize>,
     pub(super) regimes: Regimes,
+    /// Whether the training part holds the pressure after steps for at
+    /// least [`super::MIN_TRAINING_HOLD_S`] (the loop at rest is seen).
+    pub(super) rest_in_training: bool,
     pub(super) branches: Vec<Branch>,
     /// Effective-sample divisor: the base residual's correlation length.
     pub(super) corr_len: f64,

@@ -286,6 +286,8 @@ pub fn diagnose_with_progress(
             &excluded,
         ))
     });
+    let rest_in_training =
+        warnings::training_hold_s(&paced, samples, &heldout) >= MIN_TRAINING_HOLD_S;
     let mut setup = Setup {
         samples,
         coeffs,
@@ -293,6 +295,7 @@ pub fn diagnose_with_progress(
         heldout,
         train_idx,
         regimes,
+        rest_in_training,
         branches,
         corr_len: 1.0,
         noise_residual,

@@ -230,6 +230,7 @@ mod tests {
             heldout: (0..n).map(|i| i % 3 == 0).collect(),
             train_idx: (0..n).filter(|i| i % 3 != 0).collect(),
             regimes: super::super::regimes::regimes(samples, start, tracker),
+            rest_in_training: true,
             branches,
             corr_len: 1.0,
             noise_residual: 0.0,

@@ -9,16 +9,26 @@ use crate::record::Sample;
 /// rate law's factor at rest to be the record's, not an extrapolation, s.
 pub const MIN_TRAINING_HOLD_S: f64 = 1.0;
 
+/// How long the training part (`heldout` false) holds the pressure after
+/// a step, s: each such sample's interval, at most 1 s, summed.
+pub fn training_hold_s(paced: &Regimes, samples: &[Sample], heldout: &[bool]) -> f64 {
+    samples
+        .windows(2)
+        .zip(paced.hold_after_step.iter().zip(heldout))
+        .filter(|(_, (hold, out))| **hold && !**out)
+        .map(|(w, _)| (w[1].t_s - w[0].t_s).clamp(0.0, 1.0))
+        .fold(0.0, |a, b| a + b)
+}
+
 /// What a record leaves open about `effects`, one sentence each.
 ///
 /// A rate law fitted on a record whose training part holds the pressure
 /// after a step for under [`MIN_TRAINING_HOLD_S`] has its factor at rest
 /// from the ramps alone: nothing it was fitted on shows the loop while the
 /// pressure stands still, which is where a position loop's set-point
-/// spends its time. The project's own rig (Maxwell-slip friction and
-/// viscous damping, host-sim's rate rig) gives a law whose loop vanishes
-/// at rest there, and the feedforward with it tracks worse than the
-/// paper's model (host-sim/README.md).
+/// spends its time. The diagnosis then holds the law linear
+/// ([`super::candidates::RATE_EXPONENT_WITHOUT_REST`]), so its factor at
+/// rest is what the slowest ramps show; the warning stays.
 pub fn model_warnings(
     effects: &Effects,
     paced: &Regimes,
@@ -27,15 +37,10 @@ pub fn model_warnings(
 ) -> Vec<String> {
     let mut warnings = Vec::new();
     if let Some(rate) = &effects.rate {
-        let held_s: f64 = samples
-            .windows(2)
-            .zip(paced.hold_after_step.iter().zip(heldout))
-            .filter(|(_, (hold, out))| **hold && !**out)
-            .map(|(w, _)| (w[1].t_s - w[0].t_s).clamp(0.0, 1.0))
-            .fold(0.0, |a, b| a + b);
+        let held_s = training_hold_s(paced, samples, heldout);
         if held_s < MIN_TRAINING_HOLD_S {
             warnings.push(format!(
-                "the rate law's factor at rest ({:.2}) is an extrapolation: the record's training part holds the pressure after a step for {held_s:.1} s, so nothing the law was fitted on shows the loop while the pressure stands still; record a few steps with holds of several seconds (pam-lab/DIAGNOSE.md, \"What is still not handled\") before using this model as a feedforward",
+                "the rate law's factor at rest ({:.2}) is an extrapolation from its slowest ramps (the law held linear): the record's training part holds the pressure after a step for {held_s:.1} s, so nothing the law was fitted on shows the loop while the pressure stands still; record a few steps with holds of several seconds (pam-lab/DIAGNOSE.md, \"What is still not handled\") before using this model as a feedforward",
                 rate.scale_at_rest
             ));
         }
