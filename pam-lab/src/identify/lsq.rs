@@ -4,11 +4,14 @@
 //! step, and a choice of what a point where the model breaks means, and the
 //! finite-difference
 //! Jacobian, its columns shared between two threads (the machines this
-//! runs on have at least two cores).
+//! runs on have at least two cores), each column evaluated on the rows its
+//! parameter moves where the problem says which ([`Blocks`]: the stroke
+//! table's loads).
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use std::cell::{Cell, RefCell};
+use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A least-squares problem as the fits state it: `m` residuals of a
@@ -36,6 +39,25 @@ pub struct Residuals<'a> {
     /// iteration (the bound is active: solved free, the other parameters'
     /// step would count on a move of it that the projection takes back).
     pub bounds: Option<&'a [(f64, f64)]>,
+    /// For a problem whose parameters each move a block of the residuals
+    /// only: the finite-difference Jacobian evaluates each column on its
+    /// block (the same derivatives: the other rows' differences are exactly
+    /// zero). `None`: every column evaluates every residual.
+    pub blocks: Option<Blocks<'a>>,
+}
+
+/// Writes the residuals of a range of rows at a parameter vector into the
+/// range's slice.
+pub type RowResiduals<'a> = &'a (dyn Fn(&[f64], Range<usize>, &mut [f64]) + Sync);
+
+/// The residual rows each parameter moves ([`Residuals::blocks`]).
+pub struct Blocks<'a> {
+    /// The rows parameter `j` can move; every other row's derivative is
+    /// exactly zero.
+    pub of: &'a (dyn Fn(usize) -> Range<usize> + Sync),
+    /// Writes the residuals of `rows` at a parameter vector into its
+    /// `rows.len()`-slice, as `Residuals::residuals` writes them there.
+    pub residuals: RowResiduals<'a>,
 }
 
 /// What a non-finite residual (a point where the model breaks) means.
@@ -63,6 +85,21 @@ impl Residuals<'_> {
     /// ones are then 10⁶).
     fn eval(&self, theta: &[f64], out: &mut [f64]) -> bool {
         (self.residuals)(theta, out);
+        self.mark_non_finite(out)
+    }
+
+    /// [`Self::eval`] on `rows` only, into their slice `out`.
+    fn eval_rows(&self, theta: &[f64], rows: Range<usize>, out: &mut [f64]) -> bool {
+        match &self.blocks {
+            Some(b) => (b.residuals)(theta, rows, out),
+            None => return self.eval(theta, out),
+        }
+        self.mark_non_finite(out)
+    }
+
+    /// Non-finite residuals in `out` made 10⁶ (unless they are refused);
+    /// `false` when there were any.
+    fn mark_non_finite(&self, out: &mut [f64]) -> bool {
         let mut finite = true;
         for v in out.iter_mut() {
             if !v.is_finite() {
@@ -321,15 +358,24 @@ fn difference(
     let h = (problem.step)(j, v);
     let forward = if v + h > hi { -h } else { h };
     let edge = problem.non_finite == NonFinite::Edge;
+    // The rows the parameter moves; the column is zero elsewhere.
+    let rows = match &problem.blocks {
+        Some(b) => {
+            let r = (b.of)(j);
+            r.start.min(col.len())..r.end.min(col.len())
+        }
+        None => 0..col.len(),
+    };
+    col.fill(0.0);
     for (k, step) in [forward, -forward].into_iter().enumerate() {
         if k > 0 && (!edge || v + step < lo || v + step > hi) {
             break;
         }
         t[j] = v + step;
-        let finite = problem.eval(t, col);
+        let finite = problem.eval_rows(t, rows.clone(), &mut col[rows.clone()]);
         t[j] = v;
         if finite || !edge {
-            for (c, b) in col.iter_mut().zip(base) {
+            for (c, b) in col[rows.clone()].iter_mut().zip(&base[rows.clone()]) {
                 *c = (*c - b) / step;
             }
             return true;
@@ -356,6 +402,7 @@ mod tests {
             on_evaluation: &|_, _| {},
             non_finite,
             bounds,
+            blocks: None,
         }
     }
 
@@ -379,6 +426,44 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_blocked_jacobian_is_the_full_one() {
+        // Two parameters each moving its own half of four residuals, the
+        // middle two moved by both: evaluated on their blocks, the columns
+        // are bit for bit the full differences.
+        let row = |t: &[f64], i: usize| match i {
+            0 => t[0].sin(),
+            1 => t[0] * t[1],
+            2 => t[1] * t[1] + t[0],
+            _ => t[1].exp(),
+        };
+        let f = |t: &[f64], out: &mut [f64]| {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = row(t, i);
+            }
+        };
+        let of = |j: usize| if j == 0 { 0..3 } else { 1..4 };
+        let rows = |t: &[f64], r: Range<usize>, out: &mut [f64]| {
+            for (i, o) in r.zip(out.iter_mut()) {
+                *o = row(t, i);
+            }
+        };
+        let full = problem(4, &f, NonFinite::Penalise, None);
+        let blocked = Residuals {
+            blocks: Some(Blocks {
+                of: &of,
+                residuals: &rows,
+            }),
+            ..problem(4, &f, NonFinite::Penalise, None)
+        };
+        let theta = [0.7, -0.3];
+        assert_eq!(jacobian(&full, &theta), jacobian(&blocked, &theta));
+        assert_eq!(
+            minimize(&full, &theta, 50).theta,
+            minimize(&blocked, &theta, 50).theta
+        );
     }
 
     #[test]

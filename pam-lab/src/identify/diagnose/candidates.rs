@@ -442,6 +442,7 @@ fn fit_effect_on(
                 on_evaluation: &|_, _| {},
                 non_finite: lsq::NonFinite::Refuse,
                 bounds: None,
+                blocks: None,
             },
             &start,
             cfg.patience,

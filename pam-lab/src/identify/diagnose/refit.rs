@@ -115,6 +115,7 @@ pub(super) fn refit_base(
             on_evaluation: &|_, _| {},
             non_finite: lsq::NonFinite::Edge,
             bounds: Some(&bounds),
+            blocks: None,
         },
         &theta0,
         lsq::Limits {

@@ -340,6 +340,7 @@ pub fn fit_with_progress(
             on_evaluation: &on_evaluation,
             non_finite: lsq::NonFinite::Penalise,
             bounds: None,
+            blocks: None,
         },
         &theta0,
         cfg.patience,

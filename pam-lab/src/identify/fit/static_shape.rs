@@ -97,21 +97,69 @@ impl TrainSet {
         nodes: Option<&[[f64; TABLE_KNOTS]; TABLE_LOADS]>,
         out: &mut [f64],
     ) {
+        self.table_residuals_of(fam, nodes, 0..self.len(), out);
+    }
+
+    /// [`Self::table_residuals`] of the runs within `rows` (run-aligned,
+    /// [`Self::table_blocks`]) into their slice `out`.
+    fn table_residuals_of(
+        &self,
+        fam: &LoadFamily,
+        nodes: Option<&[[f64; TABLE_KNOTS]; TABLE_LOADS]>,
+        rows: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) {
         let (vp, vx) = (self.sigma_p * self.sigma_p, self.sigma_x * self.sigma_x);
         let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
-        for &(load, start, end) in &self.runs {
+        let runs = self
+            .runs
+            .iter()
+            .filter(|r| r.1 >= rows.start && r.2 <= rows.end);
+        for &(load, start, end) in runs {
             let m = fam.at_load(load);
             let k = nodes.map(|n| at_fraction_f64(n, (load - fam.min_load_n) / span));
-            let rows = self.x[start..end]
+            let samples = self.x[start..end]
                 .iter()
                 .zip(&self.branch[start..end])
                 .zip(&self.p[start..end]);
-            for (o, ((&x, &br), &pm)) in out[start..end].iter_mut().zip(rows) {
+            let slots = &mut out[start - rows.start..end - rows.start];
+            for (o, ((&x, &br), &pm)) in slots.iter_mut().zip(samples) {
                 let (p, slope) =
                     ConstraintShape::pressure_and_slope_f64([0.0; 4], k.as_ref(), &m, x, br);
                 *o = (p - pm) / (vp + slope * slope * vx).sqrt();
             }
         }
+    }
+
+    /// The rows each table load's knots move, per table load: the runs at
+    /// loads from the table load before it to the one after (the table is
+    /// blended between neighbouring loads, and held at the end tables
+    /// outside the calibrated range), run-aligned (the runs are sorted by
+    /// load).
+    fn table_blocks(&self, fam: &LoadFamily) -> Vec<std::ops::Range<usize>> {
+        let span = fam.max_load_n - fam.min_load_n;
+        let node = |i: usize| fam.min_load_n + span * i as f64 / (TABLE_LOADS - 1) as f64;
+        let row_of_load = |load: f64, inclusive: bool| {
+            let k = self
+                .runs
+                .partition_point(|r| if inclusive { r.0 <= load } else { r.0 < load });
+            self.runs.get(k).map_or(self.len(), |r| r.1)
+        };
+        (0..TABLE_LOADS)
+            .map(|i| {
+                let start = if i == 0 {
+                    0
+                } else {
+                    row_of_load(node(i - 1), false)
+                };
+                let end = if i + 1 == TABLE_LOADS {
+                    self.len()
+                } else {
+                    row_of_load(node(i + 1), true)
+                };
+                start..end.max(start)
+            })
+            .collect()
     }
 }
 
@@ -137,6 +185,14 @@ fn fit_table(
     let residuals = |w: &[f64], out: &mut [f64]| {
         train.table_residuals(fam, Some(&knots(w)), out);
     };
+    // A table load's variables move the samples near it only: each
+    // Jacobian column is evaluated on those (a third of them on average
+    // with six table loads).
+    let blocks = train.table_blocks(fam);
+    let block_of = |j: usize| blocks[j / (TABLE_SEGMENTS - 1)].clone();
+    let residuals_of = |w: &[f64], rows: std::ops::Range<usize>, out: &mut [f64]| {
+        train.table_residuals_of(fam, Some(&knots(w)), rows, out);
+    };
     let on_evaluation = |count, cost| progress(Progress::Evaluation { count, cost });
     let minimum = lsq::minimize(
         &lsq::Residuals {
@@ -146,6 +202,10 @@ fn fit_table(
             on_evaluation: &on_evaluation,
             non_finite: lsq::NonFinite::Penalise,
             bounds: None,
+            blocks: Some(lsq::Blocks {
+                of: &block_of,
+                residuals: &residuals_of,
+            }),
         },
         w0,
         patience,
@@ -181,6 +241,7 @@ fn refit_paper(
             on_evaluation: &on_evaluation,
             non_finite: lsq::NonFinite::Penalise,
             bounds: None,
+            blocks: None,
         },
         theta,
         patience,
