@@ -79,7 +79,9 @@ use crate::identify::fit::{FitConfig, Holdout};
 use crate::record::Record;
 
 pub use crate::evaluate::errors::{correlation_length, NoiseFloor};
-pub use candidates::{CandidateResult, EffectKind, Signature, RATE_EXPONENTS};
+pub use candidates::{
+    CandidateResult, EffectKind, Signature, RATE_EXPONENTS, RATE_EXPONENT_WITHOUT_REST,
+};
 pub use config::{
     DiagnoseConfig, HOLDOUT_EVERY, ISOMETRIC_LOAD_GROUP_N, PRESSURE_MEDIAN_HALF_WIDTH,
 };

@@ -27,7 +27,7 @@ pub fn training_hold_s(paced: &Regimes, samples: &[Sample], heldout: &[bool]) ->
 /// from the ramps alone: nothing it was fitted on shows the loop while the
 /// pressure stands still, which is where a position loop's set-point
 /// spends its time. The diagnosis then holds the law linear
-/// ([`super::candidates::RATE_EXPONENT_WITHOUT_REST`]), so its factor at
+/// ([`super::RATE_EXPONENT_WITHOUT_REST`]), so its factor at
 /// rest is what the slowest ramps show; the warning stays.
 pub fn model_warnings(
     effects: &Effects,
