@@ -218,9 +218,10 @@ pub fn inverse_f64(k: &[f64; TABLE_KNOTS], v: f64) -> (f64, f64) {
     )
 }
 
-/// [`StrokeTable::knots_at_load`] in `f64` on knots per load `nodes`, at the load
-/// fraction `f = (L − L_min)/(L_max − L_min)` (clamped; NaN → 0).
-pub fn at_fraction_f64(nodes: &[[f64; TABLE_KNOTS]; TABLE_LOADS], f: f64) -> [f64; TABLE_KNOTS] {
+/// The two table loads [`at_fraction_f64`] blends at the load fraction `f`:
+/// `(i, t)`, the knots `nodes[i] + t·(nodes[i + 1] − nodes[i])`. The
+/// result depends on `nodes[i + 1]` only where `t > 0`.
+pub fn blend_f64(f: f64) -> (usize, f64) {
     let f = if f.is_finite() {
         f.clamp(0.0, 1.0)
     } else {
@@ -228,7 +229,13 @@ pub fn at_fraction_f64(nodes: &[[f64; TABLE_KNOTS]; TABLE_LOADS], f: f64) -> [f6
     };
     let pos = f * (TABLE_LOADS - 1) as f64;
     let i = (pos as usize).min(TABLE_LOADS - 2);
-    let t = pos - i as f64;
+    (i, pos - i as f64)
+}
+
+/// [`StrokeTable::knots_at_load`] in `f64` on knots per load `nodes`, at the load
+/// fraction `f = (L − L_min)/(L_max − L_min)` (clamped; NaN → 0).
+pub fn at_fraction_f64(nodes: &[[f64; TABLE_KNOTS]; TABLE_LOADS], f: f64) -> [f64; TABLE_KNOTS] {
+    let (i, t) = blend_f64(f);
     let mut k = [0.0; TABLE_KNOTS];
     for (j, v) in k.iter_mut().enumerate() {
         *v = nodes[i][j] + t * (nodes[i + 1][j] - nodes[i][j]);
