@@ -137,17 +137,17 @@ impl TrainSet {
     /// load no run blends.
     fn table_blocks(&self, fam: &LoadFamily) -> Vec<std::ops::Range<usize>> {
         let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
-        let mut blocks = vec![usize::MAX..0; TABLE_LOADS];
+        let mut blocks: Vec<Option<(usize, usize)>> = vec![None; TABLE_LOADS];
         for &(load, start, end) in &self.runs {
             let (i, t) = blend_f64((load - fam.min_load_n) / span);
             let moved = if t > 0.0 { i..i + 2 } else { i..i + 1 };
             for b in &mut blocks[moved] {
-                *b = b.start.min(start)..b.end.max(end);
+                *b = Some(b.map_or((start, end), |(s, e)| (s.min(start), e.max(end))));
             }
         }
         blocks
             .into_iter()
-            .map(|b| if b.start < b.end { b } else { 0..0 })
+            .map(|b| b.map_or(0..0, |(s, e)| s..e))
             .collect()
     }
 }
