@@ -236,8 +236,8 @@ pub fn pressure_to_reach(
 /// pressures `muscle_mpa` (one per sample): `τ·ṗ`, the slope a centred
 /// difference over `±2τ` of the samples' time, within the run of rising
 /// time (steps in `(0, MAX_STEP_S]`) the sample is in, shortened at the
-/// run's ends and where a pressure is not finite; 0 where no two samples
-/// span the window. `NaN` pressures give `NaN`.
+/// run's ends; 0 where no two samples span the window or a pressure at its
+/// ends is not finite. A `NaN` pressure gives `NaN`.
 pub fn lag_lead(tau_s: f64, samples: &[Sample], muscle_mpa: &[f64]) -> Vec<f64> {
     let n = samples.len().min(muscle_mpa.len());
     let half = 2.0 * tau_s;
