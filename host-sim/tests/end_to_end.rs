@@ -91,6 +91,49 @@ fn coulomb_rig_diagnosed_blob_tracks_no_worse_than_fits() {
     assert!(diag <= paper, "{diag} vs {paper}");
 }
 
+/// The rate rig (five times the reference's damping): its record has no
+/// hold after a step, so diagnose fits the linear rate law, whose loop at
+/// rest is what the slowest ramps show, and its blob tracks the triangle
+/// without tripping the model check. A sub-linear law fitted there put the
+/// factor at rest at 0.00 and tripped at 9.8 s (seed 1, the main job's
+/// triangle). Release only (about half a minute).
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn rate_rig_diagnosed_rate_law_keeps_its_loop_at_rest_and_does_not_trip() {
+    let rig = effect_rigs()
+        .into_iter()
+        .find(|r| r.name == "rate")
+        .unwrap();
+    let cfg = BenchConfig::default_with_seed(1);
+    let outcome = run_rig(&rig, &[Scenario::triangle(8, 4.0)], &cfg);
+    let id = outcome
+        .identified
+        .as_ref()
+        .expect("fit and diagnose accept the record");
+    assert!(
+        id.effects_added.contains(&"rate_dependence"),
+        "{:?}",
+        id.effects_added
+    );
+    let (_, effects) = pam_core::blob::decode_model(&id.diagnosed_blob).unwrap();
+    let rate = effects.rate.expect("the blob carries the rate law");
+    assert_eq!(rate.exponent, 1.0, "{rate:?}");
+    assert!(rate.scale_at_rest > 0.1, "{rate:?}");
+    let diagnosed = outcome.runs[0]
+        .diagnosed
+        .as_ref()
+        .expect("the firmware boots diagnose's blob");
+    eprintln!(
+        "rate rig, triangle: fit FF+PI {:.4}, diagnosed FF+PI {:.4}, factor at rest {:.2}",
+        outcome.runs[0].paper.metrics.rms_error, diagnosed.metrics.rms_error, rate.scale_at_rest
+    );
+    assert!(
+        diagnosed.first_fault.is_none(),
+        "{:?}",
+        diagnosed.first_fault
+    );
+}
+
 #[test]
 fn a_corrupt_blob_from_the_pipeline_is_refused_at_boot_with_its_reason() {
     let rig = effect_rigs()[0];
