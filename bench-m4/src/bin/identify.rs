@@ -749,16 +749,7 @@ fn main() {
         }
     };
     let coeffs = Coeffs::new(params).expect("pam-lab returns valid parameters");
-    let sim = pam_lab::evaluate::simulate::simulate(
-        &coeffs,
-        &pam_core::Effects::NONE,
-        TrackerConfig::DEFAULT_PRESSURE,
-        samples,
-    );
-    let mut paper = Errors::default();
-    for (s, &h) in sim.iter().zip(&heldout) {
-        paper.add(h, s.error());
-    }
+    let paper = paper_errors(&coeffs, samples, &heldout);
 
     // Non-local memory: shape chosen on the training samples.
     let (shape, memory) = MEMORY_SHAPES
@@ -769,16 +760,7 @@ fn main() {
 
     // Baselines.
     let pi = identify_pi(samples, &heldout);
-    let mut pi_err = Errors::default();
-    let mut m = PrandtlIshlinskii::new(
-        &pi,
-        samples[0].load_n as f32,
-        samples[0].pressure_mpa as f32,
-    );
-    for (s, &h) in samples.iter().zip(&heldout) {
-        let x = m.step(&pi, s.pressure_mpa as f32, s.load_n as f32);
-        pi_err.add(h, f64::from(x) - s.contraction);
-    }
+    let pi_err = pi_errors(&pi, samples, &heldout);
     let (gpi, gpi_err) = GPI_MAX_THRESHOLDS_MPA
         .iter()
         .map(|&r| {
@@ -789,16 +771,7 @@ fn main() {
         .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
         .expect("thresholds");
     let pr = identify_preisach(samples, &heldout);
-    let mut pr_err = Errors::default();
-    let mut m = Preisach::new(
-        &pr,
-        samples[0].load_n as f32,
-        samples[0].pressure_mpa as f32,
-    );
-    for (s, &h) in samples.iter().zip(&heldout) {
-        let x = m.step(&pr, s.pressure_mpa as f32, s.load_n as f32);
-        pr_err.add(h, f64::from(x) - s.contraction);
-    }
+    let pr_err = preisach_errors(&pr, samples, &heldout);
 
     // identified.rs
     let mut src = String::new();
