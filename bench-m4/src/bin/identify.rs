@@ -269,18 +269,32 @@ fn identify_gpi(
     table
 }
 
-fn gpi_errors(table: &GpiTable<GPI_N, L>, samples: &[Sample], heldout: &[bool]) -> Errors {
+/// The first sample's load (N) and pressure (MPa): where a baseline starts.
+fn start(samples: &[Sample]) -> (f32, f32) {
+    samples
+        .first()
+        .map_or((0.0, 0.0), |s| (s.load_n as f32, s.pressure_mpa as f32))
+}
+
+/// A baseline's errors over `samples`: `step(pressure MPa, load N)` gives
+/// its contraction, sample by sample.
+fn baseline_errors(
+    samples: &[Sample],
+    heldout: &[bool],
+    mut step: impl FnMut(f32, f32) -> f32,
+) -> Errors {
     let mut e = Errors::default();
-    let mut m = GeneralizedPi::new(
-        table,
-        samples[0].load_n as f32,
-        samples[0].pressure_mpa as f32,
-    );
     for (s, &h) in samples.iter().zip(heldout) {
-        let x = m.step(table, s.pressure_mpa as f32, s.load_n as f32);
+        let x = step(s.pressure_mpa as f32, s.load_n as f32);
         e.add(h, f64::from(x) - s.contraction);
     }
     e
+}
+
+fn gpi_errors(table: &GpiTable<GPI_N, L>, samples: &[Sample], heldout: &[bool]) -> Errors {
+    let (l0, p0) = start(samples);
+    let mut m = GeneralizedPi::new(table, l0, p0);
+    baseline_errors(samples, heldout, |p, l| m.step(table, p, l))
 }
 
 fn identify_preisach(samples: &[Sample], heldout: &[bool]) -> PreisachTable<N, L> {
@@ -424,31 +438,15 @@ fn paper_errors(coeffs: &Coeffs, samples: &[Sample], heldout: &[bool]) -> Errors
 }
 
 fn pi_errors(table: &PiTable<N, L>, samples: &[Sample], heldout: &[bool]) -> Errors {
-    let mut e = Errors::default();
-    let mut m = PrandtlIshlinskii::new(
-        table,
-        samples[0].load_n as f32,
-        samples[0].pressure_mpa as f32,
-    );
-    for (s, &h) in samples.iter().zip(heldout) {
-        let x = m.step(table, s.pressure_mpa as f32, s.load_n as f32);
-        e.add(h, f64::from(x) - s.contraction);
-    }
-    e
+    let (l0, p0) = start(samples);
+    let mut m = PrandtlIshlinskii::new(table, l0, p0);
+    baseline_errors(samples, heldout, |p, l| m.step(table, p, l))
 }
 
 fn preisach_errors(table: &PreisachTable<N, L>, samples: &[Sample], heldout: &[bool]) -> Errors {
-    let mut e = Errors::default();
-    let mut m = Preisach::new(
-        table,
-        samples[0].load_n as f32,
-        samples[0].pressure_mpa as f32,
-    );
-    for (s, &h) in samples.iter().zip(heldout) {
-        let x = m.step(table, s.pressure_mpa as f32, s.load_n as f32);
-        e.add(h, f64::from(x) - s.contraction);
-    }
-    e
+    let (l0, p0) = start(samples);
+    let mut m = Preisach::new(table, l0, p0);
+    baseline_errors(samples, heldout, |p, l| m.step(table, p, l))
 }
 
 /// Every model identified on `train`'s samples outside `heldout` (pam-core's
@@ -897,32 +895,24 @@ fn main() {
             pr_err,
         ),
     ];
-    let mut md = String::new();
-    let _ = writeln!(
-        md,
+    let intro = format!(
         "Held-out accuracy on `host_sim::characterisation_run({SEED})` ({} samples, 100–600 N; \
          every 4th pressure cycle held out: {} held-out samples, {} training samples). \
          Contraction error = predicted − measured, in % of rest length \
-         (the measurement noise alone is about 0.03 %).\n",
+         (the measurement noise alone is about 0.03 %).",
         samples.len(),
         n_test,
         samples.len() - n_test
     );
-    md.push_str(
-        "| model | identified | held-out RMS (%) | held-out max (%) | training RMS (%) |\n",
-    );
-    md.push_str("|---|---|---:|---:|---:|\n");
+    let table: Vec<Row> = rows
+        .iter()
+        .map(|(_, name, how, e)| (*name, how.clone(), *e))
+        .collect();
+    let mut md = table_md(&intro, &table);
     let mut tsv = String::from(
         "# model\theldout_rms\theldout_max\ttrain_rms (contraction, fraction; regenerate: bench-m4/run.sh)\n",
     );
-    for (key, name, how, e) in &rows {
-        let _ = writeln!(
-            md,
-            "| {name} | {how} | {:.3} | {:.3} | {:.3} |",
-            100.0 * e.test_rms(),
-            100.0 * e.test_max,
-            100.0 * e.train_rms()
-        );
+    for (key, _, _, e) in &rows {
         let _ = writeln!(
             tsv,
             "{key}\t{:.6}\t{:.6}\t{:.6}",
