@@ -2,7 +2,7 @@
 # Everything in one command:
 # 1. on the host, identify the baselines (and pam-core) on host-sim's
 #    characterisation run: writes bench-m4/src/identified.rs, accuracy.md and
-#    accuracy.tsv (bench-m4/src/bin/identify.rs);
+#    accuracy.tsv (bench-m4/src/bin/identify/);
 # 2. build the bench image with those tables and count executed instructions
 #    per call on Cortex-M4F (QEMU netduinoplus2 + the insn_count TCG plugin);
 # 3. print the instruction table, the per-model summary (cost, code and RAM
