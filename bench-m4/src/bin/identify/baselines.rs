@@ -1,4 +1,5 @@
-//! Identification of the baselines by linear least squares per grid load, and a grid load without training samples filled from its neighbours.
+//! Identification of the baselines by linear least squares per grid load, and
+//! a grid load without training samples filled from its neighbours.
 
 use super::*;
 

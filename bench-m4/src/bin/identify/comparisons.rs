@@ -1,4 +1,5 @@
-//! The comparisons beyond held-out cycles: held-out loads, another protocol, another muscle; each a markdown table.
+//! The comparisons beyond held-out cycles: held-out loads, another protocol,
+//! another muscle; each a markdown table.
 
 use super::*;
 

@@ -1,4 +1,5 @@
-//! Every model's errors over a record: the baselines, pam-core's paper model and its non-local memory.
+//! Every model's errors over a record: the baselines, pam-core's paper model
+//! and its non-local memory.
 
 use super::*;
 
