@@ -11,101 +11,49 @@ pub(crate) const HELDOUT_GRID: [usize; 2] = [2, 4];
 /// errors.
 pub(crate) type Row = (&'static str, String, Errors);
 
-/// Every model identified on `train`'s samples outside `heldout` (pam-core's
-/// parameters `params` given; the memory's shape and GPI-4's threshold
-/// chosen on the training samples; a grid load without training samples
-/// interpolated, [`fill_untrained`]), then scored on `test` (every sample
-/// held out) or on `train`'s held-out samples.
+/// Every model identified on `train`'s samples outside `heldout` and scored
+/// on `test` (every sample held out) or on `train`'s held-out samples
+/// ([`identify_models`], [`score`]): the table's rows.
 pub(crate) fn compare(
     train: &[Sample],
     heldout: &[bool],
     params: Params,
     test: Option<&[Sample]>,
 ) -> Vec<Row> {
-    let trained = trained_grid(train, heldout);
-    let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
-    let all = test.map(|t| vec![true; t.len()]);
-    let on_test =
-        |f: &dyn Fn(&[Sample], &[bool]) -> Errors| test.zip(all.as_deref()).map(|(t, h)| f(t, h));
+    let models = identify_models(train, heldout, params);
+    rows(&models, &score(&models, train, heldout, test))
+}
 
-    let coeffs = Coeffs::new(params).expect("pam-lab returns valid parameters");
-    let paper = merged(
-        paper_errors(&coeffs, train, heldout),
-        on_test(&|s, h| paper_errors(&coeffs, s, h)),
-    );
-    let (shape, memory) = MEMORY_SHAPES
-        .iter()
-        .map(|&sh| (sh, memory_errors(&coeffs, sh, train, heldout)))
-        .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
-        .expect("shapes");
-    let memory = merged(memory, on_test(&|s, h| memory_errors(&coeffs, shape, s, h)));
-
-    let mut pi = identify_pi(train, heldout);
-    fill_untrained(&mut pi.grid, &trained, |a, b, t| PiCoeffs {
-        bias: lerp(a.bias, b.bias, t),
-        linear: lerp(a.linear, b.linear, t),
-        weights: lerp_arr(&a.weights, &b.weights, t),
-    });
-    let pi_err = merged(
-        pi_errors(&pi, train, heldout),
-        on_test(&|s, h| pi_errors(&pi, s, h)),
-    );
-
-    let (gpi, gpi_err) = GPI_MAX_THRESHOLDS_MPA
-        .iter()
-        .map(|&r| {
-            let mut t = identify_gpi(train, heldout, r);
-            fill_untrained(&mut t.grid, &trained, |a, b, t| GpiCoeffs {
-                bias: lerp(a.bias, b.bias, t),
-                cubic: lerp_arr(&a.cubic, &b.cubic, t),
-                weights: lerp_arr(&a.weights, &b.weights, t),
-            });
-            let e = gpi_errors(&t, train, heldout);
-            (t, e)
-        })
-        .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
-        .expect("thresholds");
-    let gpi_err = merged(gpi_err, on_test(&|s, h| gpi_errors(&gpi, s, h)));
-
-    let mut pr = identify_preisach(train, heldout);
-    fill_untrained(&mut pr.grid, &trained, |a, b, t| PreisachCoeffs {
-        bias: lerp(a.bias, b.bias, t),
-        linear: lerp(a.linear, b.linear, t),
-        everett: core::array::from_fn(|i| lerp_arr(&a.everett[i], &b.everett[i], t)),
-    });
-    let pr_err = merged(
-        preisach_errors(&pr, train, heldout),
-        on_test(&|s, h| preisach_errors(&pr, s, h)),
-    );
-
+/// The rows of `models` with their errors `e`.
+pub(crate) fn rows(models: &Models, e: &Scores) -> Vec<Row> {
     vec![
         (
             "pam-core, paper model",
             "`pam_lab::identify::fit::fit`; 8 parameters".to_string(),
-            paper,
+            e.paper,
         ),
         (
             "pam-core + non-local memory",
-            format!("same parameters; memory `shape` = {shape}"),
-            memory,
+            format!("same parameters; memory `shape` = {}", models.memory_shape),
+            e.memory,
         ),
         (
             "Prandtl–Ishlinskii, 16 play operators",
             "least squares per load".to_string(),
-            pi_err,
+            e.pi,
         ),
         (
             "generalised Prandtl–Ishlinskii, 4 plays + cubic input",
             format!(
                 "least squares per load; largest threshold {} MPa",
-                gpi.thresholds_mpa[GPI_N - 1]
+                models.gpi.thresholds_mpa[GPI_N - 1]
             ),
-            gpi_err,
+            e.gpi,
         ),
         (
             "Preisach, 16 × 16 half-grid (136 relays)",
             "least squares per load".to_string(),
-            pr_err,
+            e.preisach,
         ),
     ]
 }
@@ -188,7 +136,7 @@ pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> String {
 /// The other protocol: the models of the first table (training cycles of
 /// the characterisation run) on an isotonic run of the same rig with a
 /// fast cycle ([`IsotonicProtocol::WITH_FAST_CYCLE`]).
-pub(crate) fn other_protocol(samples: &[Sample], heldout: &[bool], params: Params) -> String {
+pub(crate) fn other_protocol(models: &Models, samples: &[Sample], heldout: &[bool]) -> String {
     let run = isotonic_run_on(
         Rig::reference(LOADS_N[0], SEED + 1),
         &IsotonicProtocol::WITH_FAST_CYCLE,
@@ -203,7 +151,7 @@ pub(crate) fn other_protocol(samples: &[Sample], heldout: &[bool], params: Param
             SEED + 1,
             test.samples.len()
         ),
-        &compare(samples, heldout, params, Some(&test.samples)),
+        &rows(models, &score(models, samples, heldout, Some(&test.samples))),
     )
 }
 

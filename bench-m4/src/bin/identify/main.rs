@@ -61,10 +61,12 @@ use pam_lab::record::Sample;
 mod baselines;
 mod comparisons;
 mod errors;
+mod models;
 
 use baselines::*;
 use comparisons::*;
 use errors::*;
+use models::*;
 
 /// Seed of the characterisation run (sensor noise only).
 const SEED: u64 = 1;
@@ -130,30 +132,14 @@ fn main() {
             (Params::DEFAULT, "`Params::DEFAULT` (pam-lab's fit failed)")
         }
     };
-    let coeffs = Coeffs::new(params).expect("pam-lab returns valid parameters");
-    let paper = paper_errors(&coeffs, samples, &heldout);
-
-    // Non-local memory: shape chosen on the training samples.
-    let (shape, memory) = MEMORY_SHAPES
-        .iter()
-        .map(|&sh| (sh, memory_errors(&coeffs, sh, samples, &heldout)))
-        .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
-        .expect("shapes");
-
-    // Baselines.
-    let pi = identify_pi(samples, &heldout);
-    let pi_err = pi_errors(&pi, samples, &heldout);
-    let (gpi, gpi_err) = GPI_MAX_THRESHOLDS_MPA
-        .iter()
-        .map(|&r| {
-            let t = identify_gpi(samples, &heldout, r);
-            let e = gpi_errors(&t, samples, &heldout);
-            (t, e)
-        })
-        .min_by(|a, b| a.1.train_rms().total_cmp(&b.1.train_rms()))
-        .expect("thresholds");
-    let pr = identify_preisach(samples, &heldout);
-    let pr_err = preisach_errors(&pr, samples, &heldout);
+    let models = identify_models(samples, &heldout, params);
+    let e = score(&models, samples, &heldout, None);
+    let (shape, pi, gpi, pr) = (
+        models.memory_shape,
+        &models.pi,
+        &models.gpi,
+        &models.preisach,
+    );
 
     // identified.rs
     let mut src = String::new();
@@ -245,19 +231,19 @@ fn main() {
             "pam_core",
             "pam-core, paper model (tracker + inverse, pressure drive)",
             format!("{pam_source}; 8 parameters"),
-            paper,
+            e.paper,
         ),
         (
             "pam_core_memory",
             "pam-core + non-local memory (`Simulator<16>`)",
             format!("same parameters; memory `shape` = {shape} chosen on the training cycles"),
-            memory,
+            e.memory,
         ),
         (
             "pi16",
             "Prandtl–Ishlinskii, 16 play operators",
             format!("least squares per load; {} coefficients", L * (N + 2)),
-            pi_err,
+            e.pi,
         ),
         (
             "gpi4",
@@ -267,7 +253,7 @@ fn main() {
                 L * (GPI_N + 4),
                 gpi.thresholds_mpa[GPI_N - 1]
             ),
-            gpi_err,
+            e.gpi,
         ),
         (
             "preisach16",
@@ -276,7 +262,7 @@ fn main() {
                 "least squares per load; {} coefficients",
                 L * (N * (N + 1) / 2 + 2)
             ),
-            pr_err,
+            e.preisach,
         ),
     ];
     let intro = format!(
@@ -307,7 +293,7 @@ fn main() {
     }
     for more in [
         held_out_loads(&record),
-        other_protocol(samples, &heldout, params),
+        other_protocol(&models, samples, &heldout),
         other_muscle(),
     ] {
         md.push('\n');

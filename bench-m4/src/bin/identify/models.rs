@@ -1,0 +1,102 @@
+//! Every benchmarked model identified on a record's training samples, and
+//! the errors of all of them on a record.
+
+use super::*;
+
+/// The models of one comparison.
+pub(crate) struct Models {
+    /// pam-core's paper model (pam-lab's fit).
+    pub(crate) coeffs: Coeffs,
+    /// The non-local memory's shape, chosen on the training samples.
+    pub(crate) memory_shape: f32,
+    pub(crate) pi: PiTable<N, L>,
+    /// GPI-4 at the largest threshold the training samples chose.
+    pub(crate) gpi: GpiTable<GPI_N, L>,
+    pub(crate) preisach: PreisachTable<N, L>,
+}
+
+/// The errors of each of [`Models`].
+pub(crate) struct Scores {
+    pub(crate) paper: Errors,
+    pub(crate) memory: Errors,
+    pub(crate) pi: Errors,
+    pub(crate) gpi: Errors,
+    pub(crate) preisach: Errors,
+}
+
+/// Every model identified on `train`'s samples outside `heldout`, pam-core's
+/// parameters `params` given: the memory's shape and GPI-4's largest
+/// threshold chosen by training RMS; a grid load without training samples
+/// interpolated from its neighbours ([`fill_untrained`]; none where every
+/// grid load trains).
+pub(crate) fn identify_models(train: &[Sample], heldout: &[bool], params: Params) -> Models {
+    let trained = trained_grid(train, heldout);
+    let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
+    let coeffs = Coeffs::new(params).expect("pam-lab returns valid parameters");
+    let memory_shape = MEMORY_SHAPES
+        .iter()
+        .map(|&sh| (sh, memory_errors(&coeffs, sh, train, heldout).train_rms()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("shapes")
+        .0;
+
+    let mut pi = identify_pi(train, heldout);
+    fill_untrained(&mut pi.grid, &trained, |a, b, t| PiCoeffs {
+        bias: lerp(a.bias, b.bias, t),
+        linear: lerp(a.linear, b.linear, t),
+        weights: lerp_arr(&a.weights, &b.weights, t),
+    });
+    let gpi = GPI_MAX_THRESHOLDS_MPA
+        .iter()
+        .map(|&r| {
+            let mut t = identify_gpi(train, heldout, r);
+            fill_untrained(&mut t.grid, &trained, |a, b, t| GpiCoeffs {
+                bias: lerp(a.bias, b.bias, t),
+                cubic: lerp_arr(&a.cubic, &b.cubic, t),
+                weights: lerp_arr(&a.weights, &b.weights, t),
+            });
+            let rms = gpi_errors(&t, train, heldout).train_rms();
+            (t, rms)
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("thresholds")
+        .0;
+    let mut preisach = identify_preisach(train, heldout);
+    fill_untrained(&mut preisach.grid, &trained, |a, b, t| PreisachCoeffs {
+        bias: lerp(a.bias, b.bias, t),
+        linear: lerp(a.linear, b.linear, t),
+        everett: core::array::from_fn(|i| lerp_arr(&a.everett[i], &b.everett[i], t)),
+    });
+    Models {
+        coeffs,
+        memory_shape,
+        pi,
+        gpi,
+        preisach,
+    }
+}
+
+/// Each model's errors: its training part from `train` outside `heldout`,
+/// its held-out part from `test` (every sample held out) or from `train`'s
+/// held-out samples.
+pub(crate) fn score(
+    m: &Models,
+    train: &[Sample],
+    heldout: &[bool],
+    test: Option<&[Sample]>,
+) -> Scores {
+    let all = test.map(|t| vec![true; t.len()]);
+    let both = |f: &dyn Fn(&[Sample], &[bool]) -> Errors| {
+        merged(
+            f(train, heldout),
+            test.zip(all.as_deref()).map(|(t, h)| f(t, h)),
+        )
+    };
+    Scores {
+        paper: both(&|s, h| paper_errors(&m.coeffs, s, h)),
+        memory: both(&|s, h| memory_errors(&m.coeffs, m.memory_shape, s, h)),
+        pi: both(&|s, h| pi_errors(&m.pi, s, h)),
+        gpi: both(&|s, h| gpi_errors(&m.gpi, s, h)),
+        preisach: both(&|s, h| preisach_errors(&m.preisach, s, h)),
+    }
+}
