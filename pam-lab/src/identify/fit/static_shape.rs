@@ -176,16 +176,17 @@ fn fit_table(
     };
     // A table load's variables move the samples near it only: each
     // Jacobian column is evaluated on those (a third of them on average
-    // with six table loads). Festo 10 cm: the Jacobians take 2 s of the
-    // stage's 17; the rest is the optimiser's own QR of the 34 683 × 66
-    // Jacobian, each iteration.
+    // with six table loads), and the steps come from the normal equations
+    // formed over the rows each column pair shares (the crate's QR of the
+    // whole 34 683 × 66 Jacobian of Festo 10 cm took most of the stage's
+    // 17 s).
     let blocks = train.table_blocks(fam);
     let block_of = |j: usize| blocks[j / (TABLE_SEGMENTS - 1)].clone();
     let residuals_of = |w: &[f64], rows: std::ops::Range<usize>, out: &mut [f64]| {
         train.table_residuals_of(fam, Some(&knots(w)), rows, out);
     };
     let on_evaluation = |count, cost| progress(Progress::Evaluation { count, cost });
-    let minimum = lsq::minimize(
+    let minimum = lsq::minimize_normal(
         &lsq::Residuals {
             m: train.len(),
             residuals: &residuals,

@@ -6,13 +6,17 @@
 //! Jacobian, its columns shared between two threads (the machines this
 //! runs on have at least two cores), each column evaluated on the rows its
 //! parameter moves where the problem says which ([`Blocks`]: the stroke
-//! table's loads).
+//! table's loads). [`minimize_normal`] takes its steps from the normal
+//! equations instead, for the tall blocked problem of the stroke table.
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use std::cell::{Cell, RefCell};
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+mod normal_equations;
+pub use normal_equations::minimize_normal;
 
 /// A least-squares problem as the fits state it: `m` residuals of a
 /// parameter vector, written by `residuals`, and the finite-difference step
