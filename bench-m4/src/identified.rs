@@ -12,16 +12,16 @@ pub const PAM_PARAMS: Params = Params {
     max_load_n: 600.0,
     load_step_n: 100.0,
     points: CriticalPoints {
-        root_contraction: 0.01597626,
-        max_contraction: 0.2298047,
+        root_contraction: 0.016779752,
+        max_contraction: 0.22953886,
         max_pressure_mpa: 0.5009666,
-        tangency: Point { contraction: 0.06883861, pressure_mpa: 0.19357781 },
-        inflection: Point { contraction: 0.12170096, pressure_mpa: 0.2432827 },
+        tangency: Point { contraction: 0.06948622, pressure_mpa: 0.19573732 },
+        inflection: Point { contraction: 0.12219269, pressure_mpa: 0.24454868 },
     },
-    root_regression_per_step: 0.0053453753,
-    max_regression_per_step: 0.01637935,
-    c_growth_per_step: 0.15559754,
-    ellipse_height_mpa: 0.030081466,
+    root_regression_per_step: 0.005345376,
+    max_regression_per_step: 0.016379353,
+    c_growth_per_step: 0.14911792,
+    ellipse_height_mpa: 0.030096233,
 };
 
 /// Shape of the non-local memory (chosen on the training samples).

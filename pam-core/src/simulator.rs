@@ -7,7 +7,7 @@ use crate::coeffs::Coeffs;
 use crate::effects::memory::Blend;
 use crate::effects::{
     branch_contraction, CreepState, Effects, PressureLagState, RateState, Reversal, ReversalStack,
-    MAX_STEP_S,
+    ShapeInverse, MAX_STEP_S,
 };
 use crate::error::Error;
 use crate::math::clamp;
@@ -43,6 +43,10 @@ pub struct Simulator<const N: usize> {
     /// The offset scale at the extreme (the rate law's factor there).
     extreme_scale: f32,
     last_output: f32,
+    /// The constraint shape at the load it was last made for, ready to
+    /// apply (made again when the tracker's load changes: the same map as
+    /// [`crate::effects::ConstraintShape::at_load`]'s `apply`, bit for bit).
+    shape_at_load: Option<(f32, ShapeInverse)>,
     /// The branch in use (the tracker's, or the caller's in
     /// [`Simulator::step_on_branch`]).
     branch: Branch,
@@ -73,6 +77,7 @@ impl<const N: usize> Simulator<N> {
             extreme: None,
             extreme_scale: 1.0,
             last_output,
+            shape_at_load: None,
             branch: Branch::Contraction,
         })
     }
@@ -236,8 +241,16 @@ impl<const N: usize> Simulator<N> {
         // relaxes towards the muscle's static value).
         let (x_static, x_clamped) = match &self.effects.shape {
             Some(s) => {
-                let s = s.at_load(self.coeffs.params(), self.tracker.load_n());
-                (s.apply(model, x_static), s.apply(model, x_clamped))
+                let load_n = self.tracker.load_n();
+                let at_load = match self.shape_at_load {
+                    Some((made_for, at_load)) if made_for.to_bits() == load_n.to_bits() => at_load,
+                    _ => {
+                        let at_load = s.inverse_at_load(self.coeffs.params(), load_n);
+                        self.shape_at_load = Some((load_n, at_load));
+                        at_load
+                    }
+                };
+                (at_load.apply(model, x_static), at_load.apply(model, x_clamped))
             }
             None => (x_static, x_clamped),
         };

@@ -191,24 +191,24 @@ pub fn diagnose_with_progress(
     // systematic misfit is the effect's, not the curve's). The shape is a
     // candidate like the others.
     fit_cfg.static_shape = false;
-    // Three independent fits, side by side: the paper's model; fit's
+    // Two independent fits, side by side: the paper's model; fit's
     // static shape on the same training part, as fit keeps it (its BIC and
     // its own held-out cycles: a table that stands in for a creep or a rate
     // law fails there), the table variant of the `constraint_shape`
-    // candidate, which competes with the others; and fit's static model on
-    // the whole record, which is written when that variant is chosen
-    // ([`whole_record_static_model`]).
+    // candidate, which competes with the others. fit's static model on
+    // the whole record is written when that variant is chosen, and fitted
+    // then ([`whole_record_static_model`]).
     let with_table = cfg.fit.static_shape;
     progress(&format!(
         "fitting the paper's model on {} training samples{}",
         train_record.samples.len(),
         if with_table {
-            ", and beside it the static shape fit would keep on the training part and on the whole record"
+            ", and beside it the static shape fit would keep on the training part"
         } else {
             ""
         }
     ));
-    let (fit, stroke_table, whole_static) = std::thread::scope(|scope| {
+    let (fit, stroke_table) = std::thread::scope(|scope| {
         let table = with_table.then(|| {
             scope.spawn(|| {
                 let mut table_cfg = fit_cfg.clone();
@@ -219,13 +219,8 @@ pub fn diagnose_with_progress(
                     .and_then(|f| f.constraint_shape.map(|shape| (f.params, shape)))
             })
         });
-        let whole = with_table.then(|| scope.spawn(|| whole_record_static_model(record, &fit_cfg)));
         let fit = crate::identify::fit::fit(&train_record, &fit_cfg);
-        (
-            fit,
-            table.and_then(parallel::joined),
-            whole.and_then(parallel::joined),
-        )
+        (fit, table.and_then(parallel::joined))
     });
     let fit = fit?;
 
@@ -402,7 +397,8 @@ pub fn diagnose_with_progress(
                 ..setup.base_effects
             };
     let whole = if table_only {
-        whole_static.map(|(params, coeffs, shape, samples)| {
+        progress("fitting fit's static model on the whole record, the model written");
+        whole_record_static_model(record, &fit_cfg).map(|(params, coeffs, shape, samples)| {
             let effects = Effects {
                 shape: Some(shape),
                 ..current
