@@ -250,7 +250,10 @@ impl<const N: usize> Simulator<N> {
                         at_load
                     }
                 };
-                (at_load.apply(model, x_static), at_load.apply(model, x_clamped))
+                (
+                    at_load.apply(model, x_static),
+                    at_load.apply(model, x_clamped),
+                )
             }
             None => (x_static, x_clamped),
         };

@@ -1,5 +1,5 @@
 //! Levenberg–Marquardt on the normal equations, for tall problems whose
-//! parameters each move a block of the rows ([`Blocks`]): the stroke
+//! parameters each move a block of the rows ([`super::Blocks`]): the stroke
 //! table's 66 variables over tens of thousands of samples.
 //!
 //! The crate's MINPACK algorithm ([`super::minimize`]) factors the whole
