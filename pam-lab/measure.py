@@ -204,6 +204,17 @@ sections = [
             "pam-lab/measure.sh --examples DIR",
         ),
     ),
+    (
+        "## A long record",
+        records_table(
+            "long",
+            "A long record",
+            "The time a user-sized record takes: host-sim's reference muscle through its end-to-end "
+            "protocol logged at 250 Hz (`cargo run --release -p host-sim --example long_record -- "
+            "long.csv`: 103 500 rows), each command timed as a whole process on two cores.",
+            "pam-lab/measure.sh --long",
+        ),
+    ),
     ("## Real muscles: the Festo 10 mm set", festo),
     ("## diagnose on the hidden plants", hidden_tables()),
     # Printed by the tests that check them (each names its command): kept.

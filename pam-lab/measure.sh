@@ -7,18 +7,21 @@
 #       BPA_Static_Characterization_Test/10mmData_Nov2022 of
 #       github.com/Agile-and-Adaptive-Robotics/Muscle_Sensory (not shipped: no licence)
 #   pam-lab/measure.sh --hidden             and the hidden plants' 54 records (generated)
+#   pam-lab/measure.sh --long               and a 103 500-row record (host-sim's long_record
+#       example): how long fit and diagnose take on a user-sized file
 # Options combine. fit and diagnose run one record at a time, so the times are
 # each command's own on this machine.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
-examples="" festo="" hidden=""
+examples="" festo="" hidden="" long=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --examples) examples=$(cd "$2" && pwd); shift 2 ;;
     --festo) festo=$(cd "$2" && pwd); shift 2 ;;
     --hidden) hidden=1; shift ;;
-    *) echo "usage: $0 [--examples DIR] [--festo DIR] [--hidden]" >&2; exit 2 ;;
+    --long) long=1; shift ;;
+    *) echo "usage: $0 [--examples DIR] [--festo DIR] [--hidden] [--long]" >&2; exit 2 ;;
   esac
 done
 work=$(mktemp -d)
@@ -53,6 +56,12 @@ if [ -n "$examples" ]; then
   for f in "$examples"/example_*.csv; do
     both ex "$(basename "$f" .csv)" "$f"
   done
+fi
+
+if [ -n "$long" ]; then
+  mkdir -p "$work/long"
+  cargo run -q --release -p host-sim --example long_record -- "$work/long/long_record.csv" 2>/dev/null
+  both long long_record "$work/long/long_record.csv"
 fi
 
 if [ -n "$festo" ]; then
