@@ -122,21 +122,21 @@ impl Params {
         max_load_n: 600.0,
         load_step_n: 100.0,
         points: CriticalPoints {
-            root_contraction: 0.0151208835,
-            max_contraction: 0.22982764,
+            root_contraction: 0.015122114,
+            max_contraction: 0.22982769,
             max_pressure_mpa: 0.50096667,
             tangency: Point {
-                contraction: 0.06818282,
-                pressure_mpa: 0.19351701,
+                contraction: 0.068183854,
+                pressure_mpa: 0.19352181,
             },
             inflection: Point {
-                contraction: 0.12124475,
-                pressure_mpa: 0.24306354,
+                contraction: 0.12124559,
+                pressure_mpa: 0.24306448,
             },
         },
-        root_regression_per_step: 0.005341029,
-        max_regression_per_step: 0.016381713,
-        c_growth_per_step: 0.15472324,
-        ellipse_height_mpa: 0.030232545,
+        root_regression_per_step: 0.005341328,
+        max_regression_per_step: 0.016383935,
+        c_growth_per_step: 0.15466118,
+        ellipse_height_mpa: 0.030233167,
     };
 }
