@@ -6,8 +6,29 @@
 use crate::{GpiCoeffs, GpiTable, PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};
 use pam_core::{CriticalPoints, Params, Point};
 
-/// pam-core's parameters: pam_lab::identify::fit::fit on the training cycles.
+/// pam-core's paper model: pam_lab::identify::fit::fit with static_shape: false.
 pub const PAM_PARAMS: Params = Params {
+    min_load_n: 100.0,
+    max_load_n: 600.0,
+    load_step_n: 100.0,
+    points: CriticalPoints {
+        root_contraction: 0.015128784,
+        max_contraction: 0.2298,
+        max_pressure_mpa: 0.5009666,
+        tangency: Point { contraction: 0.06817606, pressure_mpa: 0.19339366 },
+        inflection: Point { contraction: 0.12122334, pressure_mpa: 0.24299686 },
+    },
+    root_regression_per_step: 0.005345376,
+    max_regression_per_step: 0.016379353,
+    c_growth_per_step: 0.15475434,
+    ellipse_height_mpa: 0.030228434,
+};
+
+/// Shape of the non-local memory on the paper model (chosen on the training samples).
+pub const MEMORY_SHAPE: f32 = 5.0;
+
+/// The model pam-lab's fit writes: its parameters (pam_lab::identify::fit::fit as `pam-lab fit` runs it) ...
+pub const PAM_FIT_PARAMS: Params = Params {
     min_load_n: 100.0,
     max_load_n: 600.0,
     load_step_n: 100.0,
@@ -24,8 +45,32 @@ pub const PAM_PARAMS: Params = Params {
     ellipse_height_mpa: 0.030096233,
 };
 
-/// Shape of the non-local memory (chosen on the training samples).
-pub const MEMORY_SHAPE: f32 = 5.0;
+/// ... and its static shape.
+pub const PAM_FIT_SHAPE: Option<pam_core::effects::ConstraintShape> = Some(pam_core::effects::ConstraintShape {
+        bulge: 0.0,
+        tilt: 0.0,
+        bulge_per_step: 0.0,
+        tilt_per_step: 0.0,
+        root_shift: 0.0,
+        end_shift: 0.0,
+        root_shift_per_step: 0.0,
+        end_shift_per_step: 0.0,
+        root_shift_per_step_sq: 0.0,
+        end_shift_per_step_sq: 0.0,
+        table: pam_core::effects::StrokeTable {
+            knots: [
+                [0.04974649, 0.19644262, 0.38110507, 0.4640403, 0.507069, 0.5344343, 0.5617248, 0.59356606, 0.6984284, 0.7977138, 0.9332406],
+                [0.05152678, 0.097028315, 0.30531383, 0.4201856, 0.49441004, 0.58869886, 0.60010755, 0.6331685, 0.707466, 0.7881879, 0.9262364],
+                [0.067322835, 0.08233977, 0.2005997, 0.36907443, 0.5043546, 0.5571481, 0.60357815, 0.65849596, 0.713036, 0.7953033, 0.92312527],
+                [0.08642946, 0.10534892, 0.14218977, 0.3081447, 0.44577715, 0.55978674, 0.61725974, 0.6662213, 0.69427234, 0.84648496, 0.9143681],
+                [0.10473833, 0.12636577, 0.14856105, 0.25714666, 0.46075013, 0.5641295, 0.6496845, 0.7202015, 0.78896767, 0.8589304, 0.9093682],
+                [0.12906255, 0.15162745, 0.18253958, 0.22923772, 0.4248091, 0.5681176, 0.5986906, 0.7570785, 0.81435037, 0.8695305, 0.9053466],
+            ],
+        },
+    });
+
+/// Shape of the non-local memory on fit's model (chosen on the training samples).
+pub const FIT_MEMORY_SHAPE: f32 = 5.0;
 
 /// Prandtl–Ishlinskii, 16 play operators, at 6 loads.
 pub const PI16: PiTable<16, 6> = PiTable {

@@ -16,7 +16,10 @@ use core::hint::black_box;
 use core::mem::size_of;
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use bench_m4::identified::{GPI4, MEMORY_SHAPE, PAM_PARAMS, PI16, PREISACH16};
+use bench_m4::identified::{
+    FIT_MEMORY_SHAPE, GPI4, MEMORY_SHAPE, PAM_FIT_PARAMS, PAM_FIT_SHAPE, PAM_PARAMS, PI16,
+    PREISACH16,
+};
 use bench_m4::{GeneralizedPi, GpiTable, PiTable, PrandtlIshlinskii, Preisach, PreisachTable};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -136,6 +139,18 @@ fn bench_simulator_step(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) ->
 #[no_mangle]
 #[inline(never)]
 fn bench_nonlocal_memory_step(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) -> f32 {
+    s.step(t_s, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_fit_model_step(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) -> f32 {
+    s.step(t_s, p, load_n)
+}
+
+#[no_mangle]
+#[inline(never)]
+fn bench_fit_memory_step(s: &mut Simulator<16>, t_s: f32, p: f32, load_n: f32) -> f32 {
     s.step(t_s, p, load_n)
 }
 
@@ -383,6 +398,37 @@ fn main() -> ! {
     }
     group("nonlocal_memory_step", &minor, |(dt, p)| {
         bench_nonlocal_memory_step(&mut sim_mem, t0 + dt, p, 200.0)
+    });
+
+    // The model `pam-lab fit` writes (its parameters with its static
+    // shape, the stroke table on this rig), alone and with the memory, in
+    // the same minor loop.
+    let Ok(fit_coeffs) = Coeffs::new(PAM_FIT_PARAMS) else {
+        fail("PAM_FIT_PARAMS refused");
+    };
+    let new_fit_sim = |effects| {
+        Simulator::<16>::new(fit_coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, 200.0)
+            .unwrap_or_else(|_| fail("simulator refused fit's model"))
+    };
+    let mut sim_fit = new_fit_sim(Effects {
+        shape: PAM_FIT_SHAPE,
+        ..Effects::NONE
+    });
+    let t0 = warm(&mut sim_fit);
+    group("fit_model_step", &minor, |(dt, p)| {
+        bench_fit_model_step(&mut sim_fit, t0 + dt, p, 200.0)
+    });
+    let mut sim_fit_mem = new_fit_sim(Effects {
+        shape: PAM_FIT_SHAPE,
+        memory: Some(NonLocalMemory::with_shape(FIT_MEMORY_SHAPE)),
+        ..Effects::NONE
+    });
+    let t0 = warm(&mut sim_fit_mem);
+    if sim_fit_mem.reversals().len() != 2 {
+        fail("fit's memory warm-up did not leave two reversals");
+    }
+    group("fit_memory_step", &minor, |(dt, p)| {
+        bench_fit_memory_step(&mut sim_fit_mem, t0 + dt, p, 200.0)
     });
 
     // A wipe-out: from the same minor loop (turning points 0.3 and
@@ -727,6 +773,8 @@ fn main() -> ! {
         size_of::<Coeffs>() + size_of::<Tracker>()
     );
     hprintln!("ram nonlocal_memory_step {}", size_of::<Simulator<16>>());
+    hprintln!("ram fit_model_step {}", size_of::<Simulator<16>>());
+    hprintln!("ram fit_memory_step {}", size_of::<Simulator<16>>());
     hprintln!("ram pi16_step {}", size_of::<Pi16>());
     hprintln!("table pi16_step {}", size_of::<Pi16Table>());
     hprintln!("ram gpi4_step {}", size_of::<Gpi4>());

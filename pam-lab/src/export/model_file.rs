@@ -7,6 +7,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
+use pam_core::effects::ConstraintShape;
 use pam_core::{blob, Coeffs, Effects, Params};
 use serde::{Deserialize, Serialize};
 
@@ -275,35 +276,7 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
             f(w.scale_per_step)
         )
     }));
-    let shape = opt(effects.shape.map(|c| {
-        format!(
-            "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n        root_shift: {},\n        end_shift: {},\n        root_shift_per_step: {},\n        end_shift_per_step: {},\n        root_shift_per_step_sq: {},\n        end_shift_per_step_sq: {},\n        table: {},\n    }}",
-            f(c.bulge),
-            f(c.tilt),
-            f(c.bulge_per_step),
-            f(c.tilt_per_step),
-            f(c.root_shift),
-            f(c.end_shift),
-            f(c.root_shift_per_step),
-            f(c.end_shift_per_step),
-            f(c.root_shift_per_step_sq),
-            f(c.end_shift_per_step_sq),
-            if c.table.is_neutral() {
-                "pam_core::effects::StrokeTable::NEUTRAL".to_string()
-            } else {
-                let nodes: Vec<String> = c
-                    .table
-                    .knots
-                    .iter()
-                    .map(|k| format!("[{}]", k.map(f).join(", ")))
-                    .collect();
-                format!(
-                    "pam_core::effects::StrokeTable {{\n            knots: [\n                {},\n            ],\n        }}",
-                    nodes.join(",\n                ")
-                )
-            }
-        )
-    }));
+    let shape = opt(effects.shape.as_ref().map(constraint_shape_literal));
     let pressure_lag = opt(effects.pressure_lag.map(|l| {
         format!(
             "pam_core::effects::PressureLag {{\n        time_constant_s: {},\n    }}",
@@ -316,6 +289,40 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
          memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n    shape: {shape},\n    pressure_lag: {pressure_lag},\n}};\n"
     ));
     src
+}
+
+/// A constraint shape as a Rust expression (`pam_core::effects::ConstraintShape { .. }`,
+/// its stroke table's knots written out unless it is the identity): what
+/// `model_params.rs` and bench-m4's `identified.rs` carry.
+pub fn constraint_shape_literal(c: &ConstraintShape) -> String {
+    let f = f32_literal;
+    format!(
+        "pam_core::effects::ConstraintShape {{\n        bulge: {},\n        tilt: {},\n        bulge_per_step: {},\n        tilt_per_step: {},\n        root_shift: {},\n        end_shift: {},\n        root_shift_per_step: {},\n        end_shift_per_step: {},\n        root_shift_per_step_sq: {},\n        end_shift_per_step_sq: {},\n        table: {},\n    }}",
+        f(c.bulge),
+        f(c.tilt),
+        f(c.bulge_per_step),
+        f(c.tilt_per_step),
+        f(c.root_shift),
+        f(c.end_shift),
+        f(c.root_shift_per_step),
+        f(c.end_shift_per_step),
+        f(c.root_shift_per_step_sq),
+        f(c.end_shift_per_step_sq),
+        if c.table.is_neutral() {
+            "pam_core::effects::StrokeTable::NEUTRAL".to_string()
+        } else {
+            let nodes: Vec<String> = c
+                .table
+                .knots
+                .iter()
+                .map(|k| format!("[{}]", k.map(f).join(", ")))
+                .collect();
+            format!(
+                "pam_core::effects::StrokeTable {{\n            knots: [\n                {},\n            ],\n        }}",
+                nodes.join(",\n                ")
+            )
+        }
+    )
 }
 
 /// An `f32` as a Rust literal: `{:?}` (the shortest text that reads back

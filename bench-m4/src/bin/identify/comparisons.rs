@@ -7,9 +7,37 @@ use super::*;
 /// 500 N): every model is identified without them and tested there.
 pub(crate) const HELDOUT_GRID: [usize; 2] = [2, 4];
 
-/// One row of a comparison table: the model, how it was identified, its
-/// errors.
-pub(crate) type Row = (&'static str, String, Errors);
+/// One row of a comparison table: the model's key (`accuracy.tsv`,
+/// report.py), its name, how it was identified, its errors.
+pub(crate) type Row = (&'static str, &'static str, String, Errors);
+
+/// One comparison: its key in `accuracy.tsv`, its markdown, its rows.
+pub(crate) struct Comparison {
+    pub(crate) key: &'static str,
+    pub(crate) md: String,
+    pub(crate) rows: Vec<Row>,
+}
+
+impl Comparison {
+    /// The comparison `key` of `rows`, introduced by `intro`.
+    pub(crate) fn new(key: &'static str, intro: &str, rows: Vec<Row>) -> Comparison {
+        Comparison {
+            key,
+            md: table_md(intro, &rows),
+            rows,
+        }
+    }
+}
+
+/// pam-core's two models of a record from pam-lab's fit: the paper's model
+/// alone (`fit --no-static-shape`), and what `fit` writes by default (its
+/// parameters with its static shape: the stroke table where the cubic
+/// leaves a systematic misfit, as on this rig).
+pub(crate) struct PamFit {
+    pub(crate) paper: Params,
+    pub(crate) fit: Params,
+    pub(crate) shape: Option<ConstraintShape>,
+}
 
 /// Every model identified on `train`'s samples outside `heldout` and scored
 /// on `test` (every sample held out) or on `train`'s held-out samples
@@ -17,10 +45,10 @@ pub(crate) type Row = (&'static str, String, Errors);
 pub(crate) fn compare(
     train: &[Sample],
     heldout: &[bool],
-    params: Params,
+    pam: &PamFit,
     test: Option<&[Sample]>,
 ) -> Vec<Row> {
-    let models = identify_models(train, heldout, params);
+    let models = identify_models(train, heldout, pam);
     rows(&models, &score(&models, train, heldout, test))
 }
 
@@ -28,34 +56,73 @@ pub(crate) fn compare(
 pub(crate) fn rows(models: &Models, e: &Scores) -> Vec<Row> {
     vec![
         (
+            "pam_core",
             "pam-core, paper model",
-            "`pam_lab::identify::fit::fit`; 8 parameters".to_string(),
+            "`pam_lab::identify::fit::fit` with `static_shape: false`; 8 parameters".to_string(),
             e.paper,
         ),
         (
-            "pam-core + non-local memory",
-            format!("same parameters; memory `shape` = {}", models.memory_shape),
+            "pam_core_memory",
+            "pam-core, paper model + non-local memory",
+            format!(
+                "same parameters; memory `shape` = {} chosen on the training cycles",
+                models.memory_shape
+            ),
             e.memory,
         ),
         (
+            "pam_core_fit",
+            "pam-core, fit's model (paper + static shape)",
+            format!(
+                "`pam_lab::identify::fit::fit` as `pam-lab fit` runs it; {}",
+                shape_kind(models.shape)
+            ),
+            e.fit,
+        ),
+        (
+            "pam_core_fit_memory",
+            "pam-core, fit's model + non-local memory",
+            format!(
+                "same model; memory `shape` = {} chosen on the training cycles",
+                models.fit_memory_shape
+            ),
+            e.fit_memory,
+        ),
+        (
+            "pi16",
             "Prandtl–Ishlinskii, 16 play operators",
-            "least squares per load".to_string(),
+            format!("least squares per load; {} coefficients", L * (N + 2)),
             e.pi,
         ),
         (
+            "gpi4",
             "generalised Prandtl–Ishlinskii, 4 plays + cubic input",
             format!(
-                "least squares per load; largest threshold {} MPa",
+                "least squares per load; {} coefficients; largest threshold {} MPa chosen on the training cycles",
+                L * (GPI_N + 4),
                 models.gpi.thresholds_mpa[GPI_N - 1]
             ),
             e.gpi,
         ),
         (
+            "preisach16",
             "Preisach, 16 × 16 half-grid (136 relays)",
-            "least squares per load".to_string(),
+            format!(
+                "least squares per load; {} coefficients",
+                L * (N * (N + 1) / 2 + 2)
+            ),
             e.preisach,
         ),
     ]
+}
+
+/// What fit's static shape is, for a table's "identified" column.
+pub(crate) fn shape_kind(shape: Option<ConstraintShape>) -> &'static str {
+    match shape {
+        Some(s) if !s.table.is_neutral() => "8 parameters and a stroke table (66 knots)",
+        Some(_) => "8 parameters and a polynomial shape correction",
+        None => "8 parameters (fit kept no static shape)",
+    }
 }
 
 /// A comparison's markdown: `intro`, then the table.
@@ -65,7 +132,7 @@ pub(crate) fn table_md(intro: &str, rows: &[Row]) -> String {
         "| model | identified | held-out RMS (%) | held-out max (%) | training RMS (%) |\n",
     );
     md.push_str("|---|---|---:|---:|---:|\n");
-    for (name, how, e) in rows {
+    for (_, name, how, e) in rows {
         let _ = writeln!(
             md,
             "| {name} | {how} | {:.3} | {:.3} | {:.3} |",
@@ -77,27 +144,33 @@ pub(crate) fn table_md(intro: &str, rows: &[Row]) -> String {
     md
 }
 
-/// pam-lab's fit of `record` with `holdout`, or `Params::DEFAULT` (said on
-/// stderr) when it fails.
-pub(crate) fn fitted(record: &pam_lab::record::Record, holdout: Holdout) -> Params {
-    let cfg = FitConfig {
-        holdout,
-        ..FitConfig::default()
+/// pam-lab's two fits of `record` with `holdout` ([`PamFit`]); a fit that
+/// fails (said on stderr) gives `Params::DEFAULT` without a shape.
+pub(crate) fn fitted(record: &pam_lab::record::Record, holdout: Holdout) -> PamFit {
+    let run = |static_shape: bool| {
+        let cfg = FitConfig {
+            holdout,
+            static_shape,
+            ..FitConfig::default()
+        };
+        pam_lab::identify::fit::fit(record, &cfg)
+            .map(|r| (r.params, r.constraint_shape))
+            .unwrap_or_else(|e| {
+                eprintln!(
+                    "pam-lab fit of {} failed ({e}); using Params::DEFAULT",
+                    record.source
+                );
+                (Params::DEFAULT, None)
+            })
     };
-    pam_lab::identify::fit::fit(record, &cfg)
-        .map(|r| r.params)
-        .unwrap_or_else(|e| {
-            eprintln!(
-                "pam-lab fit of {} failed ({e}); using Params::DEFAULT",
-                record.source
-            );
-            Params::DEFAULT
-        })
+    let (paper, _) = run(false);
+    let (fit, shape) = run(true);
+    PamFit { paper, fit, shape }
 }
 
 /// Held-out loads: every model identified without [`HELDOUT_GRID`]'s loads
 /// (all their cycles) and tested there.
-pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> String {
+pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> Comparison {
     let samples = &record.samples;
     let heldout: Vec<bool> = samples
         .iter()
@@ -113,12 +186,13 @@ pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> String {
             .map(|(s, _)| *s)
             .collect(),
     );
-    let params = fitted(&train_record, Holdout::None);
+    let pam = fitted(&train_record, Holdout::None);
     let loads: Vec<String> = HELDOUT_GRID
         .iter()
         .map(|&g| format!("{}", MIN_LOAD_N + LOAD_STEP_N * g as f32))
         .collect();
-    table_md(
+    Comparison::new(
+        "held_out_loads",
         &format!(
             "**Held-out loads.** The same run, every model identified without the {} N loads \
              (all their cycles: {} held-out samples, {} training samples) and tested there. \
@@ -129,20 +203,21 @@ pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> String {
             n_test,
             samples.len() - n_test
         ),
-        &compare(samples, &heldout, params, None),
+        compare(samples, &heldout, &pam, None),
     )
 }
 
 /// The other protocol: the models of the first table (training cycles of
 /// the characterisation run) on an isotonic run of the same rig with a
 /// fast cycle ([`IsotonicProtocol::WITH_FAST_CYCLE`]).
-pub(crate) fn other_protocol(models: &Models, samples: &[Sample], heldout: &[bool]) -> String {
+pub(crate) fn other_protocol(models: &Models, samples: &[Sample], heldout: &[bool]) -> Comparison {
     let run = isotonic_run_on(
         Rig::reference(LOADS_N[0], SEED + 1),
         &IsotonicProtocol::WITH_FAST_CYCLE,
     );
     let test = host_sim::to_record("isotonic run with a fast cycle", &run);
-    table_md(
+    Comparison::new(
+        "other_protocol",
         &format!(
             "**Another protocol.** The models of the first table, on another run of the same \
              rig (`isotonic_run_on(Rig::reference(100.0, {}), &IsotonicProtocol::WITH_FAST_CYCLE)`: \
@@ -151,12 +226,12 @@ pub(crate) fn other_protocol(models: &Models, samples: &[Sample], heldout: &[boo
             SEED + 1,
             test.samples.len()
         ),
-        &rows(models, &score(models, samples, heldout, Some(&test.samples))),
+        rows(models, &score(models, samples, heldout, Some(&test.samples))),
     )
 }
 
 /// A second muscle of the reference design: [`second_muscle`].
-pub(crate) fn other_muscle() -> String {
+pub(crate) fn other_muscle() -> Comparison {
     let protocol = IsotonicProtocol {
         loads_n: &LOADS_N,
         moves: &CHARACTERISATION_MOVES,
@@ -169,8 +244,9 @@ pub(crate) fn other_muscle() -> String {
     let split = split_branches(&record.samples, &SplitConfig::default());
     let heldout = heldout_mask(holdout, &split.cycle);
     let n_test = heldout.iter().filter(|&&h| h).count();
-    let params = fitted(&record, holdout);
-    table_md(
+    let pam = fitted(&record, holdout);
+    Comparison::new(
+        "other_muscle",
         &format!(
             "**Another muscle.** A second specimen of the reference design, identified and \
              tested on its own characterisation run as the first table is ({}; {} samples, \
@@ -179,7 +255,7 @@ pub(crate) fn other_muscle() -> String {
             record.samples.len(),
             n_test
         ),
-        &compare(&record.samples, &heldout, params, None),
+        compare(&record.samples, &heldout, &pam, None),
     )
 }
 

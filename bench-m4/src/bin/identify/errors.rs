@@ -93,16 +93,14 @@ pub(crate) fn paper_errors(coeffs: &Coeffs, samples: &[Sample], heldout: &[bool]
     e
 }
 
-pub(crate) fn memory_errors(
+/// Errors of pam-core's `Simulator` with `effects` on `coeffs`, driven by
+/// the measured pressure and load.
+pub(crate) fn effects_errors(
     coeffs: &Coeffs,
-    shape: f32,
+    effects: Effects,
     samples: &[Sample],
     heldout: &[bool],
 ) -> Errors {
-    let effects = Effects {
-        memory: Some(NonLocalMemory::with_shape(shape)),
-        ..Effects::NONE
-    };
     let mut sim = Simulator::<16>::new(
         *coeffs,
         effects,

@@ -50,10 +50,12 @@ use host_sim::plant::MuscleParams;
 use host_sim::pneumatics::PneumaticParams;
 use host_sim::Rig;
 use nalgebra::{DMatrix, DVector};
-use pam_core::effects::{Effects, NonLocalMemory};
+use pam_core::effects::{ConstraintShape, Effects, NonLocalMemory};
 use pam_core::Simulator;
 use pam_core::{Coeffs, Params, TrackerConfig};
-use pam_lab::export::model_file::{f32_literal, params_literal, ParamsLayout};
+use pam_lab::export::model_file::{
+    constraint_shape_literal, f32_literal, params_literal, ParamsLayout,
+};
 use pam_lab::identify::fit::{heldout_mask, FitConfig, Holdout};
 use pam_lab::record::split::{split_branches, SplitConfig};
 use pam_lab::record::Sample;
@@ -114,25 +116,9 @@ fn main() {
         n_test
     );
 
-    // pam-core: pam-lab's fit on the same split.
-    let cfg = FitConfig {
-        holdout,
-        ..FitConfig::default()
-    };
-    let (params, pam_source) = match pam_lab::identify::fit::fit(&record, &cfg) {
-        Ok(report) => {
-            assert_eq!(report.heldout, heldout, "pam-lab held out the same samples");
-            (
-                report.params,
-                "`pam_lab::identify::fit::fit` on the training cycles",
-            )
-        }
-        Err(e) => {
-            eprintln!("pam-lab fit failed ({e}); using Params::DEFAULT");
-            (Params::DEFAULT, "`Params::DEFAULT` (pam-lab's fit failed)")
-        }
-    };
-    let models = identify_models(samples, &heldout, params);
+    // pam-core: pam-lab's fits on the same split.
+    let pam = fitted(&record, holdout);
+    let models = identify_models(samples, &heldout, &pam);
     let e = score(&models, samples, &heldout, None);
     let (shape, pi, gpi, pr) = (
         models.memory_shape,
@@ -151,22 +137,36 @@ fn main() {
          use crate::{GpiCoeffs, GpiTable, PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};\n\
          use pam_core::{CriticalPoints, Params, Point};\n\n",
     );
+    let layout = ParamsLayout {
+        type_prefix: "",
+        inline_points: true,
+    };
     let _ = writeln!(
         src,
-        "/// pam-core's parameters: {}.\npub const PAM_PARAMS: Params = {};\n",
-        pam_source.replace('`', ""),
-        params_literal(
-            &params,
-            ParamsLayout {
-                type_prefix: "",
-                inline_points: true,
-            }
-        )
+        "/// pam-core's paper model: pam_lab::identify::fit::fit with static_shape: false.\npub const PAM_PARAMS: Params = {};\n",
+        params_literal(&pam.paper, layout)
     );
     let _ = writeln!(
         src,
-        "/// Shape of the non-local memory (chosen on the training samples).\npub const MEMORY_SHAPE: f32 = {};\n",
+        "/// Shape of the non-local memory on the paper model (chosen on the training samples).\npub const MEMORY_SHAPE: f32 = {};\n",
         f32_literal(shape)
+    );
+    let _ = writeln!(
+        src,
+        "/// The model pam-lab's fit writes: its parameters (pam_lab::identify::fit::fit as `pam-lab fit` runs it) ...\npub const PAM_FIT_PARAMS: Params = {};\n",
+        params_literal(&pam.fit, layout)
+    );
+    let _ = writeln!(
+        src,
+        "/// ... and its static shape.\npub const PAM_FIT_SHAPE: Option<pam_core::effects::ConstraintShape> = {};\n",
+        pam.shape
+            .as_ref()
+            .map_or("None".to_string(), |c| format!("Some({})", constraint_shape_literal(c)))
+    );
+    let _ = writeln!(
+        src,
+        "/// Shape of the non-local memory on fit's model (chosen on the training samples).\npub const FIT_MEMORY_SHAPE: f32 = {};\n",
+        f32_literal(models.fit_memory_shape)
     );
     let _ = writeln!(
         src,
@@ -226,45 +226,7 @@ fn main() {
     std::fs::write(root.join("src/identified.rs"), src).expect("write identified.rs");
 
     // accuracy.md / accuracy.tsv
-    let rows = [
-        (
-            "pam_core",
-            "pam-core, paper model (tracker + inverse, pressure drive)",
-            format!("{pam_source}; 8 parameters"),
-            e.paper,
-        ),
-        (
-            "pam_core_memory",
-            "pam-core + non-local memory (`Simulator<16>`)",
-            format!("same parameters; memory `shape` = {shape} chosen on the training cycles"),
-            e.memory,
-        ),
-        (
-            "pi16",
-            "Prandtl–Ishlinskii, 16 play operators",
-            format!("least squares per load; {} coefficients", L * (N + 2)),
-            e.pi,
-        ),
-        (
-            "gpi4",
-            "generalised Prandtl–Ishlinskii, 4 plays + cubic input",
-            format!(
-                "least squares per load; {} coefficients; largest threshold {} MPa chosen on the training cycles",
-                L * (GPI_N + 4),
-                gpi.thresholds_mpa[GPI_N - 1]
-            ),
-            e.gpi,
-        ),
-        (
-            "preisach16",
-            "Preisach, 16 × 16 half-grid (136 relays)",
-            format!(
-                "least squares per load; {} coefficients",
-                L * (N * (N + 1) / 2 + 2)
-            ),
-            e.preisach,
-        ),
-    ];
+    let rows = rows(&models, &e);
     let intro = format!(
         "Held-out accuracy on `host_sim::characterisation_run({SEED})` ({} samples, 100–600 N; \
          every 4th pressure cycle held out: {} held-out samples, {} training samples). \
@@ -274,30 +236,31 @@ fn main() {
         n_test,
         samples.len() - n_test
     );
-    let table: Vec<Row> = rows
-        .iter()
-        .map(|(_, name, how, e)| (*name, how.clone(), *e))
-        .collect();
-    let mut md = table_md(&intro, &table);
-    let mut tsv = String::from(
-        "# model\theldout_rms\theldout_max\ttrain_rms (contraction, fraction; regenerate: bench-m4/run.sh)\n",
-    );
-    for (key, _, _, e) in &rows {
-        let _ = writeln!(
-            tsv,
-            "{key}\t{:.6}\t{:.6}\t{:.6}",
-            e.test_rms(),
-            e.test_max,
-            e.train_rms()
-        );
-    }
-    for more in [
+    let comparisons = [
+        Comparison::new("cycles", &intro, rows),
         held_out_loads(&record),
         other_protocol(&models, samples, &heldout),
         other_muscle(),
-    ] {
-        md.push('\n');
-        md.push_str(&more);
+    ];
+    let mut md = String::new();
+    let mut tsv = String::from(
+        "# comparison\tmodel\theldout_rms\theldout_max\ttrain_rms (contraction, fraction; regenerate: bench-m4/run.sh)\n",
+    );
+    for c in &comparisons {
+        if !md.is_empty() {
+            md.push('\n');
+        }
+        md.push_str(&c.md);
+        for (key, _, _, e) in &c.rows {
+            let _ = writeln!(
+                tsv,
+                "{}\t{key}\t{:.6}\t{:.6}\t{:.6}",
+                c.key,
+                e.test_rms(),
+                e.test_max,
+                e.train_rms()
+            );
+        }
     }
     std::fs::write(root.join("accuracy.md"), &md).expect("write accuracy.md");
     std::fs::write(root.join("accuracy.tsv"), &tsv).expect("write accuracy.tsv");

@@ -5,10 +5,17 @@ use super::*;
 
 /// The models of one comparison.
 pub(crate) struct Models {
-    /// pam-core's paper model (pam-lab's fit).
+    /// pam-core's paper model (pam-lab's fit with `--no-static-shape`).
     pub(crate) coeffs: Coeffs,
-    /// The non-local memory's shape, chosen on the training samples.
+    /// The non-local memory's shape on the paper model, chosen on the
+    /// training samples.
     pub(crate) memory_shape: f32,
+    /// The model pam-lab's fit writes: its parameters and static shape.
+    pub(crate) fit: Coeffs,
+    pub(crate) shape: Option<ConstraintShape>,
+    /// The non-local memory's shape on fit's model, chosen on the training
+    /// samples.
+    pub(crate) fit_memory_shape: f32,
     pub(crate) pi: PiTable<N, L>,
     /// GPI-4 at the largest threshold the training samples chose.
     pub(crate) gpi: GpiTable<GPI_N, L>,
@@ -19,26 +26,54 @@ pub(crate) struct Models {
 pub(crate) struct Scores {
     pub(crate) paper: Errors,
     pub(crate) memory: Errors,
+    pub(crate) fit: Errors,
+    pub(crate) fit_memory: Errors,
     pub(crate) pi: Errors,
     pub(crate) gpi: Errors,
     pub(crate) preisach: Errors,
 }
 
-/// Every model identified on `train`'s samples outside `heldout`, pam-core's
-/// parameters `params` given: the memory's shape and GPI-4's largest
-/// threshold chosen by training RMS; a grid load without training samples
-/// interpolated from its neighbours ([`fill_untrained`]; none where every
-/// grid load trains).
-pub(crate) fn identify_models(train: &[Sample], heldout: &[bool], params: Params) -> Models {
-    let trained = trained_grid(train, heldout);
-    let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
-    let coeffs = Coeffs::new(params).expect("pam-lab returns valid parameters");
-    let memory_shape = MEMORY_SHAPES
+/// The memory's shape from [`MEMORY_SHAPES`] with the least training RMS
+/// on `coeffs` with the static shape `shape`.
+fn best_memory_shape(
+    coeffs: &Coeffs,
+    shape: Option<ConstraintShape>,
+    train: &[Sample],
+    heldout: &[bool],
+) -> f32 {
+    MEMORY_SHAPES
         .iter()
-        .map(|&sh| (sh, memory_errors(&coeffs, sh, train, heldout).train_rms()))
+        .map(|&sh| {
+            let rms = effects_errors(coeffs, with_memory(shape, sh), train, heldout).train_rms();
+            (sh, rms)
+        })
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .expect("shapes")
-        .0;
+        .0
+}
+
+/// The effects of a pam-core model with the static shape `shape` and the
+/// non-local memory of shape `memory`.
+pub(crate) fn with_memory(shape: Option<ConstraintShape>, memory: f32) -> Effects {
+    Effects {
+        memory: Some(NonLocalMemory::with_shape(memory)),
+        shape,
+        ..Effects::NONE
+    }
+}
+
+/// Every model identified on `train`'s samples outside `heldout`, pam-core's
+/// models `pam` given: the memory's shape and GPI-4's largest threshold
+/// chosen by training RMS; a grid load without training samples
+/// interpolated from its neighbours ([`fill_untrained`]; none where every
+/// grid load trains).
+pub(crate) fn identify_models(train: &[Sample], heldout: &[bool], pam: &PamFit) -> Models {
+    let trained = trained_grid(train, heldout);
+    let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
+    let coeffs = Coeffs::new(pam.paper).expect("pam-lab returns valid parameters");
+    let memory_shape = best_memory_shape(&coeffs, None, train, heldout);
+    let fit = Coeffs::new(pam.fit).expect("pam-lab returns valid parameters");
+    let fit_memory_shape = best_memory_shape(&fit, pam.shape, train, heldout);
 
     let mut pi = identify_pi(train, heldout);
     fill_untrained(&mut pi.grid, &trained, |a, b, t| PiCoeffs {
@@ -70,6 +105,9 @@ pub(crate) fn identify_models(train: &[Sample], heldout: &[bool], params: Params
     Models {
         coeffs,
         memory_shape,
+        fit,
+        shape: pam.shape,
+        fit_memory_shape,
         pi,
         gpi,
         preisach,
@@ -94,7 +132,17 @@ pub(crate) fn score(
     };
     Scores {
         paper: both(&|s, h| paper_errors(&m.coeffs, s, h)),
-        memory: both(&|s, h| memory_errors(&m.coeffs, m.memory_shape, s, h)),
+        memory: both(&|s, h| effects_errors(&m.coeffs, with_memory(None, m.memory_shape), s, h)),
+        fit: both(&|s, h| {
+            let effects = Effects {
+                shape: m.shape,
+                ..Effects::NONE
+            };
+            effects_errors(&m.fit, effects, s, h)
+        }),
+        fit_memory: both(&|s, h| {
+            effects_errors(&m.fit, with_memory(m.shape, m.fit_memory_shape), s, h)
+        }),
         pi: both(&|s, h| pi_errors(&m.pi, s, h)),
         gpi: both(&|s, h| gpi_errors(&m.gpi, s, h)),
         preisach: both(&|s, h| preisach_errors(&m.preisach, s, h)),

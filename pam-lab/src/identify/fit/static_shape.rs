@@ -30,6 +30,14 @@ use pam_core::effects::{ConstraintShape, StrokeTable};
 
 use super::*;
 
+/// The share of an even split of the training samples' weight over the
+/// table loads below which a table load counts as not determined by them
+/// ([`fill_unreached`]). A record with four loads over six table loads
+/// puts a third of a load's samples on the table loads between them
+/// (half an even share); a load left out of a characterisation gets its
+/// neighbours' load noise, under 2 %.
+const UNREACHED_SHARE: f64 = 0.1;
+
 /// The table's variables: per load, the log-lengths of segments 2..K.
 pub(super) const NT: usize = TABLE_LOADS * (TABLE_SEGMENTS - 1);
 
@@ -81,10 +89,41 @@ pub(super) fn knots(w: &[f64]) -> [[f64; TABLE_KNOTS]; TABLE_LOADS] {
     out
 }
 
-/// The exported table of the variables `w`.
-fn table(w: &[f64]) -> StrokeTable {
-    StrokeTable {
-        knots: knots(w).map(|k| k.map(|v| v as f32)),
+/// `nodes` with each table load the training samples do not determine
+/// (their blend weights on it, [`TrainSet::table_weights`], add up to
+/// under [`UNREACHED_SHARE`] of an even share: a record without samples
+/// between its neighbours, such as a characterisation that skips a load,
+/// whose only weight there is a neighbouring load's noise) given the
+/// knots interpolated linearly from the nearest determined table loads on
+/// each side, or the nearest one beyond the last. The search leaves such a
+/// load about where it started, the identity: no estimate of that load's
+/// curve, and a dip in the model between two loads that were fitted
+/// (bench-m4's held-out loads, 300 and 500 N left out of training: 1.74 %
+/// held-out RMS against the paper model's 0.99 % before this). A blend of
+/// two tables is a table pam-core accepts.
+fn fill_unreached(nodes: &mut [[f64; TABLE_KNOTS]; TABLE_LOADS], weights: &[f64; TABLE_LOADS]) {
+    let even = weights.iter().sum::<f64>() / TABLE_LOADS as f64;
+    let reached: Vec<usize> = (0..TABLE_LOADS)
+        .filter(|&i| weights[i] >= UNREACHED_SHARE * even)
+        .collect();
+    let (Some(&first), Some(&last)) = (reached.first(), reached.last()) else {
+        return;
+    };
+    for i in 0..TABLE_LOADS {
+        if reached.contains(&i) {
+            continue;
+        }
+        let below = reached.iter().rev().find(|&&j| j < i).copied();
+        let above = reached.iter().find(|&&j| j > i).copied();
+        nodes[i] = match (below, above) {
+            (Some(a), Some(b)) => {
+                let t = (i - a) as f64 / (b - a) as f64;
+                let (ka, kb) = (nodes[a], nodes[b]);
+                std::array::from_fn(|j| ka[j] + t * (kb[j] - ka[j]))
+            }
+            (Some(_), None) => nodes[last],
+            _ => nodes[first],
+        };
     }
 }
 
@@ -129,6 +168,23 @@ impl TrainSet {
                 *o = (p - pm) / (vp + slope * slope * vx).sqrt();
             }
         }
+    }
+
+    /// Per table load, the training samples' blend weights on it
+    /// ([`blend_f64`], the arithmetic the residuals use), summed: how many
+    /// samples' worth of data its knots are fitted on.
+    fn table_weights(&self, fam: &LoadFamily) -> [f64; TABLE_LOADS] {
+        let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
+        let mut w = [0.0; TABLE_LOADS];
+        for &(load, start, end) in &self.runs {
+            let (i, t) = blend_f64((load - fam.min_load_n) / span);
+            let n = (end - start) as f64;
+            w[i] += (1.0 - t) * n;
+            if let Some(next) = w.get_mut(i + 1) {
+                *next += t * n;
+            }
+        }
+        w
     }
 
     /// The rows each table load's knots move, per table load: the runs
@@ -297,8 +353,12 @@ pub(super) fn fit_static_shape(
     if !earns {
         return None;
     }
+    let mut nodes = knots(&minimum.theta);
+    fill_unreached(&mut nodes, &train.table_weights(&fam));
     let shape = ConstraintShape {
-        table: table(&minimum.theta),
+        table: StrokeTable {
+            knots: nodes.map(|k| k.map(|v| v as f32)),
+        },
         ..ConstraintShape::NEUTRAL
     };
     shape.validate().ok()?;
@@ -365,5 +425,57 @@ mod tests {
             train.table_residuals_of(&fam, Some(&knots(&moved)), block.clone(), &mut part);
             assert_eq!(part, r[block.clone()]);
         }
+    }
+
+    #[test]
+    fn table_loads_no_sample_reaches_take_their_neighbours_knots() {
+        // A characterisation at the table's loads but the third and fifth
+        // (300 and 500 N of 100–600 N), with a few samples of load noise
+        // next to its neighbours: those two table loads get the knots
+        // halfway between their neighbours', the last reached one is kept.
+        let fam = LoadFamily::from_params(&Params::DEFAULT).unwrap();
+        let span = fam.max_load_n - fam.min_load_n;
+        let mut train = TrainSet {
+            x: Vec::new(),
+            p: Vec::new(),
+            branch: Vec::new(),
+            runs: Vec::new(),
+            sigma_p: 1e-3,
+            sigma_x: 1e-4,
+        };
+        let at = |i: usize| fam.min_load_n + span * i as f64 / (TABLE_LOADS - 1) as f64;
+        for (load, n) in [
+            (at(0), 500),
+            (at(1), 500),
+            (at(1) + 2.0, 20),
+            (at(3), 500),
+            (at(5), 500),
+        ] {
+            let start = train.len();
+            for k in 0..n {
+                train.x.push(0.02 + 0.0001 * k as f64);
+                train.p.push(0.1);
+                train.branch.push(Branch::Contraction);
+            }
+            train.runs.push((load, start, train.len()));
+        }
+        let weights = train.table_weights(&fam);
+        assert!((weights.iter().sum::<f64>() - train.len() as f64).abs() < 1e-9);
+        let mut nodes = knots(&(0..NT).map(|j| 0.2 * (j as f64).cos()).collect::<Vec<_>>());
+        nodes[2] = knots(&[0.0; NT])[2];
+        let before = nodes;
+        fill_unreached(&mut nodes, &weights);
+        for j in 0..TABLE_KNOTS {
+            assert_eq!(nodes[0][j], before[0][j]);
+            assert_eq!(nodes[3][j], before[3][j]);
+            let mid = 0.5 * (before[1][j] + before[3][j]);
+            assert!((nodes[2][j] - mid).abs() < 1e-12, "{j}");
+            let mid = 0.5 * (before[3][j] + before[5][j]);
+            assert!((nodes[4][j] - mid).abs() < 1e-12, "{j}");
+        }
+        let table = StrokeTable {
+            knots: nodes.map(|k| k.map(|v| v as f32)),
+        };
+        assert!(table.validate().is_ok());
     }
 }
