@@ -238,24 +238,31 @@ impl<const N: usize> Simulator<N> {
 
         // The static curve's correction along the stroke (after the
         // memory, which works in the paper's model, before the creep, which
-        // relaxes towards the muscle's static value).
-        let (x_static, x_clamped) = match &self.effects.shape {
+        // relaxes towards the muscle's static value): of the unclamped
+        // static contraction for the creep, of the clamped one for the
+        // output without creep (each path maps the one it uses).
+        let x_out = if self.effects.creep.is_some() {
+            x_static
+        } else {
+            x_clamped
+        };
+        let x_shaped = match &self.effects.shape {
             Some(s) => {
                 let load_n = self.tracker.load_n();
-                let at_load = match self.shape_at_load {
-                    Some((made_for, at_load)) if made_for.to_bits() == load_n.to_bits() => at_load,
-                    _ => {
-                        let at_load = s.inverse_at_load(self.coeffs.params(), load_n);
-                        self.shape_at_load = Some((load_n, at_load));
-                        at_load
-                    }
-                };
-                (
-                    at_load.apply(model, x_static),
-                    at_load.apply(model, x_clamped),
-                )
+                let cached = matches!(
+                    self.shape_at_load,
+                    Some((made_for, _)) if made_for.to_bits() == load_n.to_bits()
+                );
+                if !cached {
+                    self.shape_at_load =
+                        Some((load_n, s.inverse_at_load(self.coeffs.params(), load_n)));
+                }
+                match &self.shape_at_load {
+                    Some((_, at_load)) => at_load.apply(model, x_out),
+                    None => x_out,
+                }
             }
-            None => (x_static, x_clamped),
+            None => x_out,
         };
         let x = match &self.effects.creep {
             Some(c) => {
@@ -264,14 +271,14 @@ impl<const N: usize> Simulator<N> {
                 clamp(
                     c.step(
                         &mut self.creep,
-                        x_static,
+                        x_shaped,
                         if dt_ok { dt_s } else { f32::NAN },
                     ),
                     lo,
                     hi,
                 )
             }
-            None => x_clamped,
+            None => x_shaped,
         };
         self.last_output = x;
         x
