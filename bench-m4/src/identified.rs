@@ -4,7 +4,8 @@
 #![allow(clippy::all, clippy::pedantic)]
 
 use crate::{GpiCoeffs, GpiTable, PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};
-use pam_core::{CriticalPoints, Params, Point};
+use pam_core::effects::NonLocalMemory;
+         use pam_core::{CriticalPoints, Params, Point};
 
 /// pam-core's paper model: pam_lab::identify::fit::fit with static_shape: false.
 pub const PAM_PARAMS: Params = Params {
@@ -24,8 +25,11 @@ pub const PAM_PARAMS: Params = Params {
     ellipse_height_mpa: 0.030228434,
 };
 
-/// Shape of the non-local memory on the paper model (chosen on the training samples).
-pub const MEMORY_SHAPE: f32 = 5.0;
+/// The non-local memory on the paper model (chosen on the training samples).
+pub const MEMORY: NonLocalMemory = NonLocalMemory {
+    shape: 5.0,
+    merge_span: 1.0,
+};
 
 /// The model pam-lab's fit writes: its parameters (pam_lab::identify::fit::fit as `pam-lab fit` runs it) ...
 pub const PAM_FIT_PARAMS: Params = Params {
@@ -69,8 +73,11 @@ pub const PAM_FIT_SHAPE: Option<pam_core::effects::ConstraintShape> = Some(pam_c
         },
     });
 
-/// Shape of the non-local memory on fit's model (chosen on the training samples).
-pub const FIT_MEMORY_SHAPE: f32 = 5.0;
+/// The non-local memory on fit's model (chosen on the training samples).
+pub const FIT_MEMORY: NonLocalMemory = NonLocalMemory {
+    shape: 5.0,
+    merge_span: 1.0,
+};
 
 /// Prandtl–Ishlinskii, 16 play operators, at 6 loads.
 pub const PI16: PiTable<16, 6> = PiTable {

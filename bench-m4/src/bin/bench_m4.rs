@@ -17,8 +17,7 @@ use core::mem::size_of;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use bench_m4::identified::{
-    FIT_MEMORY_SHAPE, GPI4, MEMORY_SHAPE, PAM_FIT_PARAMS, PAM_FIT_SHAPE, PAM_PARAMS, PI16,
-    PREISACH16,
+    FIT_MEMORY, GPI4, MEMORY, PAM_FIT_PARAMS, PAM_FIT_SHAPE, PAM_PARAMS, PI16, PREISACH16,
 };
 use bench_m4::{GeneralizedPi, GpiTable, PiTable, PrandtlIshlinskii, Preisach, PreisachTable};
 use cortex_m_rt::entry;
@@ -388,7 +387,7 @@ fn main() -> ! {
         bench_simulator_step(&mut sim, t0 + dt, p, 200.0)
     });
     let memory = Effects {
-        memory: Some(NonLocalMemory::with_shape(MEMORY_SHAPE)),
+        memory: Some(MEMORY),
         ..Effects::NONE
     };
     let mut sim_mem = new_sim(memory);
@@ -420,7 +419,7 @@ fn main() -> ! {
     });
     let mut sim_fit_mem = new_fit_sim(Effects {
         shape: PAM_FIT_SHAPE,
-        memory: Some(NonLocalMemory::with_shape(FIT_MEMORY_SHAPE)),
+        memory: Some(FIT_MEMORY),
         ..Effects::NONE
     });
     let t0 = warm(&mut sim_fit_mem);
@@ -452,7 +451,7 @@ fn main() -> ! {
     for &r in warm_mem.reversals() {
         stack.push(r);
     }
-    let mem_params = NonLocalMemory::with_shape(MEMORY_SHAPE);
+    let mem_params = MEMORY;
     let xs: [f32; 16] = core::array::from_fn(|i| 0.03 + 0.012 * i as f32);
     // First call on a loop (its ends: two branch inverses), then cached.
     hprintln!("group memory_inverse_new_loop {}", xs.len());
@@ -574,7 +573,7 @@ fn main() -> ! {
     // gives, `Feedforward::HysteresisEffects`); the rate law's exponent 0.7
     // takes the `powf` path, the slowest the law has.
     let memory_only = Effects {
-        memory: Some(NonLocalMemory::with_shape(MEMORY_SHAPE)),
+        memory: Some(MEMORY),
         ..Effects::NONE
     };
     let rate = Effects {
@@ -716,11 +715,7 @@ fn main() -> ! {
         ("constraint", Feedforward::Constraint, None),
         ("hysteresis", Feedforward::Hysteresis, None),
         ("adapted", Feedforward::Hysteresis, Some(adapting)),
-        (
-            "memory",
-            Feedforward::HysteresisMemory(NonLocalMemory::with_shape(MEMORY_SHAPE)),
-            None,
-        ),
+        ("memory", Feedforward::HysteresisMemory(MEMORY), None),
         ("rate", Feedforward::HysteresisEffects(rate), None),
         ("creep", Feedforward::HysteresisEffects(creep), None),
         ("width", Feedforward::HysteresisEffects(width), None),

@@ -65,8 +65,8 @@ pub(crate) fn rows(models: &Models, e: &Scores) -> Vec<Row> {
             "pam_core_memory",
             "pam-core, paper model + non-local memory",
             format!(
-                "same parameters; memory `shape` = {} chosen on the training cycles",
-                models.memory_shape
+                "same parameters; memory {} chosen on the training cycles",
+                memory_text(&models.memory)
             ),
             e.memory,
         ),
@@ -83,8 +83,8 @@ pub(crate) fn rows(models: &Models, e: &Scores) -> Vec<Row> {
             "pam_core_fit_memory",
             "pam-core, fit's model + non-local memory",
             format!(
-                "same model; memory `shape` = {} chosen on the training cycles",
-                models.fit_memory_shape
+                "same model; memory {} chosen on the training cycles",
+                memory_text(&models.fit_memory)
             ),
             e.fit_memory,
         ),
@@ -114,6 +114,15 @@ pub(crate) fn rows(models: &Models, e: &Scores) -> Vec<Row> {
             e.preisach,
         ),
     ]
+}
+
+/// A memory's parameters, for a table's "identified" column.
+pub(crate) fn memory_text(m: &NonLocalMemory) -> String {
+    if m.merge_span >= 1.0 {
+        format!("`shape` = {}", m.shape)
+    } else {
+        format!("`shape` = {}, `merge_span` = {}", m.shape, m.merge_span)
+    }
 }
 
 /// What fit's static shape is, for a table's "identified" column.

@@ -90,8 +90,23 @@ const PREISACH_LO_MPA: f32 = 0.01;
 const PREISACH_STEP_MPA: f32 = 0.03;
 /// Ridge on the relative scale of the normal equations' diagonal.
 const RIDGE: f64 = 1e-6;
-/// Candidate shapes of the non-local memory (chosen on training data).
-const MEMORY_SHAPES: [f32; 8] = [0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0];
+/// Candidate shapes of the non-local memory (chosen on training data, with
+/// a merge span from [`MEMORY_MERGE_SPANS`]): `NonLocalMemory::shape`'s
+/// range, 0.05–50, at about two per octave.
+const MEMORY_SHAPES: [f32; 12] = [
+    0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0, 20.0, 50.0,
+];
+/// Candidate merge spans of the non-local memory, contraction (1: none).
+const MEMORY_MERGE_SPANS: [f32; 5] = [0.005, 0.01, 0.02, 0.04, 1.0];
+
+/// A non-local memory as a Rust expression.
+fn memory_literal(m: &NonLocalMemory) -> String {
+    format!(
+        "NonLocalMemory {{\n    shape: {},\n    merge_span: {},\n}}",
+        f32_literal(m.shape),
+        f32_literal(m.merge_span)
+    )
+}
 
 fn arr(xs: &[f32]) -> String {
     let v: Vec<String> = xs.iter().map(|&x| f32_literal(x)).collect();
@@ -120,12 +135,7 @@ fn main() {
     let pam = fitted(&record, holdout);
     let models = identify_models(samples, &heldout, &pam);
     let e = score(&models, samples, &heldout, None);
-    let (shape, pi, gpi, pr) = (
-        models.memory_shape,
-        &models.pi,
-        &models.gpi,
-        &models.preisach,
-    );
+    let (shape, pi, gpi, pr) = (models.memory, &models.pi, &models.gpi, &models.preisach);
 
     // identified.rs
     let mut src = String::new();
@@ -135,7 +145,7 @@ fn main() {
          //! `host_sim::characterisation_run(1)`, training cycles only. Do not edit.\n\
          #![allow(clippy::all, clippy::pedantic)]\n\n\
          use crate::{GpiCoeffs, GpiTable, PiCoeffs, PiTable, PreisachCoeffs, PreisachTable};\n\
-         use pam_core::{CriticalPoints, Params, Point};\n\n",
+         use pam_core::effects::NonLocalMemory;\n         use pam_core::{CriticalPoints, Params, Point};\n\n",
     );
     let layout = ParamsLayout {
         type_prefix: "",
@@ -148,8 +158,8 @@ fn main() {
     );
     let _ = writeln!(
         src,
-        "/// Shape of the non-local memory on the paper model (chosen on the training samples).\npub const MEMORY_SHAPE: f32 = {};\n",
-        f32_literal(shape)
+        "/// The non-local memory on the paper model (chosen on the training samples).\npub const MEMORY: NonLocalMemory = {};\n",
+        memory_literal(&shape)
     );
     let _ = writeln!(
         src,
@@ -165,8 +175,8 @@ fn main() {
     );
     let _ = writeln!(
         src,
-        "/// Shape of the non-local memory on fit's model (chosen on the training samples).\npub const FIT_MEMORY_SHAPE: f32 = {};\n",
-        f32_literal(models.fit_memory_shape)
+        "/// The non-local memory on fit's model (chosen on the training samples).\npub const FIT_MEMORY: NonLocalMemory = {};\n",
+        memory_literal(&models.fit_memory)
     );
     let _ = writeln!(
         src,

@@ -7,15 +7,15 @@ use super::*;
 pub(crate) struct Models {
     /// pam-core's paper model (pam-lab's fit with `--no-static-shape`).
     pub(crate) coeffs: Coeffs,
-    /// The non-local memory's shape on the paper model, chosen on the
-    /// training samples.
-    pub(crate) memory_shape: f32,
+    /// The non-local memory on the paper model, chosen on the training
+    /// samples.
+    pub(crate) memory: NonLocalMemory,
     /// The model pam-lab's fit writes: its parameters and static shape.
     pub(crate) fit: Coeffs,
     pub(crate) shape: Option<ConstraintShape>,
-    /// The non-local memory's shape on fit's model, chosen on the training
+    /// The non-local memory on fit's model, chosen on the training
     /// samples.
-    pub(crate) fit_memory_shape: f32,
+    pub(crate) fit_memory: NonLocalMemory,
     pub(crate) pi: PiTable<N, L>,
     /// GPI-4 at the largest threshold the training samples chose.
     pub(crate) gpi: GpiTable<GPI_N, L>,
@@ -33,30 +33,38 @@ pub(crate) struct Scores {
     pub(crate) preisach: Errors,
 }
 
-/// The memory's shape from [`MEMORY_SHAPES`] with the least training RMS
-/// on `coeffs` with the static shape `shape`.
-fn best_memory_shape(
+/// The non-local memory of [`MEMORY_SHAPES`] × [`MEMORY_MERGE_SPANS`]
+/// with the least training RMS on `coeffs` with the static shape `shape`
+/// (a grid where pam-lab's diagnose fits the two by least squares).
+fn best_memory(
     coeffs: &Coeffs,
     shape: Option<ConstraintShape>,
     train: &[Sample],
     heldout: &[bool],
-) -> f32 {
+) -> NonLocalMemory {
     MEMORY_SHAPES
         .iter()
-        .map(|&sh| {
-            let rms = effects_errors(coeffs, with_memory(shape, sh), train, heldout).train_rms();
-            (sh, rms)
+        .flat_map(|&k| {
+            MEMORY_MERGE_SPANS.iter().map(move |&m| NonLocalMemory {
+                shape: k,
+                merge_span: m,
+            })
+        })
+        .map(|memory| {
+            let rms =
+                effects_errors(coeffs, with_memory(shape, memory), train, heldout).train_rms();
+            (memory, rms)
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))
-        .expect("shapes")
+        .expect("memories")
         .0
 }
 
 /// The effects of a pam-core model with the static shape `shape` and the
-/// non-local memory of shape `memory`.
-pub(crate) fn with_memory(shape: Option<ConstraintShape>, memory: f32) -> Effects {
+/// non-local memory `memory`.
+pub(crate) fn with_memory(shape: Option<ConstraintShape>, memory: NonLocalMemory) -> Effects {
     Effects {
-        memory: Some(NonLocalMemory::with_shape(memory)),
+        memory: Some(memory),
         shape,
         ..Effects::NONE
     }
@@ -71,9 +79,9 @@ pub(crate) fn identify_models(train: &[Sample], heldout: &[bool], pam: &PamFit) 
     let trained = trained_grid(train, heldout);
     let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
     let coeffs = Coeffs::new(pam.paper).expect("pam-lab returns valid parameters");
-    let memory_shape = best_memory_shape(&coeffs, None, train, heldout);
+    let memory = best_memory(&coeffs, None, train, heldout);
     let fit = Coeffs::new(pam.fit).expect("pam-lab returns valid parameters");
-    let fit_memory_shape = best_memory_shape(&fit, pam.shape, train, heldout);
+    let fit_memory = best_memory(&fit, pam.shape, train, heldout);
 
     let mut pi = identify_pi(train, heldout);
     fill_untrained(&mut pi.grid, &trained, |a, b, t| PiCoeffs {
@@ -104,10 +112,10 @@ pub(crate) fn identify_models(train: &[Sample], heldout: &[bool], pam: &PamFit) 
     });
     Models {
         coeffs,
-        memory_shape,
+        memory,
         fit,
         shape: pam.shape,
-        fit_memory_shape,
+        fit_memory,
         pi,
         gpi,
         preisach,
@@ -132,7 +140,7 @@ pub(crate) fn score(
     };
     Scores {
         paper: both(&|s, h| paper_errors(&m.coeffs, s, h)),
-        memory: both(&|s, h| effects_errors(&m.coeffs, with_memory(None, m.memory_shape), s, h)),
+        memory: both(&|s, h| effects_errors(&m.coeffs, with_memory(None, m.memory), s, h)),
         fit: both(&|s, h| {
             let effects = Effects {
                 shape: m.shape,
@@ -140,9 +148,7 @@ pub(crate) fn score(
             };
             effects_errors(&m.fit, effects, s, h)
         }),
-        fit_memory: both(&|s, h| {
-            effects_errors(&m.fit, with_memory(m.shape, m.fit_memory_shape), s, h)
-        }),
+        fit_memory: both(&|s, h| effects_errors(&m.fit, with_memory(m.shape, m.fit_memory), s, h)),
         pi: both(&|s, h| pi_errors(&m.pi, s, h)),
         gpi: both(&|s, h| gpi_errors(&m.gpi, s, h)),
         preisach: both(&|s, h| preisach_errors(&m.preisach, s, h)),
