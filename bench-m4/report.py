@@ -186,6 +186,7 @@ if accuracy_path:
     titles = {
         "cycles": "held-out cycles",
         "held_out_loads": "held-out loads",
+        "load_sweep": "a slow load sweep (the held-out-load models)",
         "other_protocol": "another protocol",
         "other_muscle": "another muscle",
     }

@@ -178,8 +178,9 @@ pub(crate) fn fitted(record: &pam_lab::record::Record, holdout: Holdout) -> PamF
 }
 
 /// Held-out loads: every model identified without [`HELDOUT_GRID`]'s loads
-/// (all their cycles) and tested there.
-pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> Comparison {
+/// (all their cycles) and tested there; and the same models on a slow load
+/// sweep ([`load_sweep`]).
+pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> [Comparison; 2] {
     let samples = &record.samples;
     let heldout: Vec<bool> = samples
         .iter()
@@ -200,7 +201,8 @@ pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> Comparison {
         .iter()
         .map(|&g| format!("{}", MIN_LOAD_N + LOAD_STEP_N * g as f32))
         .collect();
-    Comparison::new(
+    let models = identify_models(samples, &heldout, &pam);
+    let at_loads = Comparison::new(
         "held_out_loads",
         &format!(
             "**Held-out loads.** The same run, every model identified without the {} N loads \
@@ -212,8 +214,69 @@ pub(crate) fn held_out_loads(record: &pam_lab::record::Record) -> Comparison {
             n_test,
             samples.len() - n_test
         ),
-        compare(samples, &heldout, &pam, None),
-    )
+        rows(&models, &score(&models, samples, &heldout, None)),
+    );
+    let sweep = load_sweep();
+    let on_sweep = Comparison::new(
+        "load_sweep",
+        &format!(
+            "**A slow load sweep.** The models of the held-out-load table (identified without \
+             the {} N loads), on a run of the same rig whose hung load moves continuously: \
+             {} ({} samples, all held out).",
+            loads.join(" and "),
+            LOAD_SWEEP,
+            sweep.len()
+        ),
+        rows(&models, &score(&models, samples, &heldout, Some(&sweep))),
+    );
+    [at_loads, on_sweep]
+}
+
+/// The load sweep's protocol, as the table says it.
+pub(crate) const LOAD_SWEEP: &str = "the load from 100 to 600 N and back at 2.5 N/s, \
+    the pressure cycling 0 → 0.5 → 0 MPa at 0.05 MPa/s with a reversal inside the loop \
+    (0.35 → 0.15 MPa) every other cycle, 25 Hz, the hung load logged";
+
+/// [`LOAD_SWEEP`] on the reference rig (seed `SEED + 2`).
+pub(crate) fn load_sweep() -> Vec<Sample> {
+    let rate_hz = 25.0;
+    let dt = 1.0 / rate_hz;
+    let (lo, hi, load_rate) = (100.0, 600.0, 2.5);
+    let sweep_s = 2.0 * (hi - lo) / load_rate;
+    let load_at = |t: f64| {
+        let half = sweep_s / 2.0;
+        if t <= half {
+            lo + load_rate * t
+        } else {
+            hi - load_rate * (t - half)
+        }
+    };
+    // One pressure cycle: knots (MPa) at 0.05 MPa/s; every other cycle
+    // reverses inside the loop.
+    let full: [f64; 3] = [0.0, 0.5, 0.0];
+    let inner: [f64; 5] = [0.0, 0.35, 0.15, 0.5, 0.0];
+    let ramp = 0.05;
+    let mut rig = Rig::reference(lo, SEED + 2);
+    let mut out = Vec::new();
+    let (mut t, mut cycle) = (0.0, 0usize);
+    while t < sweep_s {
+        let knots: &[f64] = if cycle % 2 == 0 { &full } else { &inner };
+        for w in knots.windows(2) {
+            let n = ((w[1] - w[0]).abs() / ramp / dt).round() as usize;
+            for k in 0..n {
+                let load = load_at(t);
+                rig.set_load_n(load);
+                let mut s = rig.measure();
+                s.load_n = load;
+                out.push(s);
+                rig.advance_regulated(w[0] + (w[1] - w[0]) * (k + 1) as f64 / n as f64, dt);
+                t += dt;
+            }
+        }
+        cycle += 1;
+    }
+    let record = host_sim::to_record("a slow load sweep", &out);
+    record.samples
 }
 
 /// The other protocol: the models of the first table (training cycles of

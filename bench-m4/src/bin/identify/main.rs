@@ -246,9 +246,11 @@ fn main() {
         n_test,
         samples.len() - n_test
     );
+    let [at_loads, on_sweep] = held_out_loads(&record);
     let comparisons = [
         Comparison::new("cycles", &intro, rows),
-        held_out_loads(&record),
+        at_loads,
+        on_sweep,
         other_protocol(&models, samples, &heldout),
         other_muscle(),
     ];
