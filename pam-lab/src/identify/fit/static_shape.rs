@@ -373,6 +373,18 @@ pub(super) fn fit_static_shape(
 mod tests {
     use super::*;
 
+    /// A training set without samples, the noise of a typical record.
+    fn empty_train_set() -> TrainSet {
+        TrainSet {
+            x: Vec::new(),
+            p: Vec::new(),
+            branch: Vec::new(),
+            runs: Vec::new(),
+            sigma_p: 1e-3,
+            sigma_x: 1e-4,
+        }
+    }
+
     #[test]
     fn a_table_load_moves_only_its_block() {
         // Runs at loads across and beyond the calibrated range, the table
@@ -385,14 +397,7 @@ mod tests {
             .collect();
         loads.extend((0..TABLE_LOADS).map(|i| fam.min_load_n + span * i as f64 / 5.0));
         loads.sort_by(f64::total_cmp);
-        let mut train = TrainSet {
-            x: Vec::new(),
-            p: Vec::new(),
-            branch: Vec::new(),
-            runs: Vec::new(),
-            sigma_p: 1e-3,
-            sigma_x: 1e-4,
-        };
+        let mut train = empty_train_set();
         for &load in &loads {
             let start = train.len();
             for k in 0..5 {
@@ -435,14 +440,7 @@ mod tests {
         // halfway between their neighbours', the last reached one is kept.
         let fam = LoadFamily::from_params(&Params::DEFAULT).unwrap();
         let span = fam.max_load_n - fam.min_load_n;
-        let mut train = TrainSet {
-            x: Vec::new(),
-            p: Vec::new(),
-            branch: Vec::new(),
-            runs: Vec::new(),
-            sigma_p: 1e-3,
-            sigma_x: 1e-4,
-        };
+        let mut train = empty_train_set();
         let at = |i: usize| fam.min_load_n + span * i as f64 / (TABLE_LOADS - 1) as f64;
         for (load, n) in [
             (at(0), 500),
