@@ -48,7 +48,9 @@ pub mod width;
 pub use creep::{Creep, CreepState};
 pub use first_order::first_order_gain;
 pub use memory::{NonLocalMemory, Reversal, ReversalStack};
-pub use offset::{branch_contraction, MAX_OFFSET_SCALE, SCALED_INVERSE_STEPS};
+pub use offset::{
+    branch_contraction, branch_contraction_near, MAX_OFFSET_SCALE, SCALED_INVERSE_STEPS,
+};
 pub use pressure_lag::{PressureLag, PressureLagState};
 pub use rate::{RateDependence, RateState};
 pub use shape::{ConstraintShape, ShapeInverse, StrokeTable};
