@@ -259,6 +259,43 @@ mod tests {
         assert!(worst_p <= INVERSE_TOLERANCE_MPA, "pressure {worst_p}");
     }
 
+    #[test]
+    fn the_inverse_near_the_last_answer_finds_the_bisections_crossing() {
+        // Models without their tables (a deferred build, as an isometric
+        // record's simulation has them): the iteration from the previous
+        // answer along a pressure sweep, and from nothing, at scales 1 and
+        // others, within 2e-6 of the 24-step bisection's crossing.
+        let family = crate::load_model::FamilyF32::new(
+            &crate::LoadFamily::from_params(&Params::DEFAULT).unwrap(),
+        );
+        for load in [100.0, 333.0, 600.0] {
+            let m = family.model_without_tables(load);
+            assert!(!m.inverse_ready());
+            for scale in [0.5, 1.0, 1.3, 2.0] {
+                for br in [Branch::Contraction, Branch::Expansion] {
+                    let mut last = f32::NAN;
+                    for i in 0..=1_000 {
+                        let p = 0.6 * i as f32 / 1_000.0;
+                        let warm = branch_contraction_near(&m, p, br, scale, last);
+                        let cold = branch_contraction_near(&m, p, br, scale, f32::NAN);
+                        last = warm;
+                        if p >= m.max_pressure_mpa() {
+                            assert_eq!(warm, m.max_contraction());
+                            continue;
+                        }
+                        let b = bisection(&m, p, br, scale);
+                        for (how, a) in [("warm", warm), ("cold", cold)] {
+                            assert!(
+                                (a - b).abs() <= 2e-6,
+                                "{load} N, scale {scale}, {p} MPa, {br:?}, {how}: {a} vs {b}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// The scaled inverse from the chip's start (the table inverse) with
     /// the host's stop at the pressure's rounding
     /// ([`branch_contraction_near`]'s iteration).
