@@ -151,33 +151,43 @@ fn main() {
         type_prefix: "",
         inline_points: true,
     };
-    let _ = writeln!(
-        src,
-        "/// pam-core's paper model: pam_lab::identify::fit::fit with static_shape: false.\npub const PAM_PARAMS: Params = {};\n",
-        params_literal(&pam.paper, layout)
-    );
-    let _ = writeln!(
-        src,
-        "/// The non-local memory on the paper model (chosen on the training samples).\npub const MEMORY: NonLocalMemory = {};\n",
-        memory_literal(&shape)
-    );
-    let _ = writeln!(
-        src,
-        "/// The model pam-lab's fit writes: its parameters (pam_lab::identify::fit::fit as `pam-lab fit` runs it) ...\npub const PAM_FIT_PARAMS: Params = {};\n",
-        params_literal(&pam.fit, layout)
-    );
-    let _ = writeln!(
-        src,
-        "/// ... and its static shape.\npub const PAM_FIT_SHAPE: Option<pam_core::effects::ConstraintShape> = {};\n",
-        pam.shape
-            .as_ref()
-            .map_or("None".to_string(), |c| format!("Some({})", constraint_shape_literal(c)))
-    );
-    let _ = writeln!(
-        src,
-        "/// The non-local memory on fit's model (chosen on the training samples).\npub const FIT_MEMORY: NonLocalMemory = {};\n",
-        memory_literal(&models.fit_memory)
-    );
+    let constants = [
+        (
+            "pam-core's paper model: pam_lab::identify::fit::fit with static_shape: false.",
+            "PAM_PARAMS",
+            "Params",
+            params_literal(&pam.paper, layout),
+        ),
+        (
+            "The non-local memory on the paper model (chosen on the training samples).",
+            "MEMORY",
+            "NonLocalMemory",
+            memory_literal(&shape),
+        ),
+        (
+            "The model pam-lab's fit writes: its parameters (pam_lab::identify::fit::fit as `pam-lab fit` runs it) ...",
+            "PAM_FIT_PARAMS",
+            "Params",
+            params_literal(&pam.fit, layout),
+        ),
+        (
+            "... and its static shape.",
+            "PAM_FIT_SHAPE",
+            "Option<pam_core::effects::ConstraintShape>",
+            pam.shape.as_ref().map_or("None".to_string(), |c| {
+                format!("Some({})", constraint_shape_literal(c))
+            }),
+        ),
+        (
+            "The non-local memory on fit's model (chosen on the training samples).",
+            "FIT_MEMORY",
+            "NonLocalMemory",
+            memory_literal(&models.fit_memory),
+        ),
+    ];
+    for (doc, name, ty, value) in constants {
+        let _ = writeln!(src, "/// {doc}\npub const {name}: {ty} = {value};\n");
+    }
     let _ = writeln!(
         src,
         "/// Prandtl–Ishlinskii, {N} play operators, at {L} loads.\npub const PI16: PiTable<{N}, {L}> = PiTable {{\n    thresholds_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
