@@ -633,7 +633,11 @@ fn fits_static_model_stays(correction: (bool, f64), table: (bool, f64), margin: 
     match (correction.0, table.0) {
         (true, false) => false,
         (false, true) => true,
-        (true, true) => !(correction.1 < (1.0 - margin) * table.1),
+        (true, true) => {
+            // A NaN RMS is no evidence: fit's stays.
+            let clearly_better = correction.1 < (1.0 - margin) * table.1;
+            !clearly_better
+        }
         (false, false) => table.1 < correction.1,
     }
 }
