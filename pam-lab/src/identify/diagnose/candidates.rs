@@ -743,41 +743,28 @@ mod tests {
 
     #[test]
     fn a_tie_between_the_static_shapes_goes_to_fits() {
-        // host-sim's memory rig: 0.00688 against the table's 0.00699 is a
-        // tie; a correction 15 % better replaces fit's static model.
-        assert!(fits_static_model_stays(
-            (true, 0.00688),
-            (true, 0.00699),
-            0.15
-        ));
-        assert!(!fits_static_model_stays(
-            (true, 0.0059),
-            (true, 0.00699),
-            0.15
-        ));
-        assert!(!fits_static_model_stays(
-            (true, 0.0059),
-            (true, 0.0069),
-            0.0
-        ));
-        // The one that earns its place, whatever the other's RMS.
-        assert!(!fits_static_model_stays(
-            (true, 0.009),
-            (false, 0.001),
-            0.15
-        ));
-        assert!(fits_static_model_stays((false, 0.001), (true, 0.009), 0.15));
-        // Neither earns: the lower RMS (what the verdict reports).
-        assert!(fits_static_model_stays(
-            (false, 0.009),
-            (false, 0.008),
-            0.15
-        ));
-        assert!(!fits_static_model_stays(
-            (false, 0.007),
-            (false, 0.008),
-            0.15
-        ));
+        // (correction alone, fit's static model, margin, fit's stays):
+        // host-sim's memory rig's 0.00688 against the table's 0.00699 is a
+        // tie; a correction 15 % better replaces fit's static model; the
+        // one that earns its place wins whatever the other's RMS; where
+        // neither earns, the lower RMS (what the verdict reports).
+        let cases = [
+            ((true, 0.00688), (true, 0.00699), 0.15, true),
+            ((true, 0.0059), (true, 0.00699), 0.15, false),
+            ((true, 0.0059), (true, 0.0069), 0.0, false),
+            ((true, f64::NAN), (true, 0.0069), 0.15, true),
+            ((true, 0.009), (false, 0.001), 0.15, false),
+            ((false, 0.001), (true, 0.009), 0.15, true),
+            ((false, 0.009), (false, 0.008), 0.15, true),
+            ((false, 0.007), (false, 0.008), 0.15, false),
+        ];
+        for (correction, table, margin, stays) in cases {
+            assert_eq!(
+                fits_static_model_stays(correction, table, margin),
+                stays,
+                "{correction:?} {table:?} {margin}"
+            );
+        }
     }
 
     #[test]
