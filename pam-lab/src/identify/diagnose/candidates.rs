@@ -642,6 +642,24 @@ fn fits_static_model_stays(correction: (bool, f64), table: (bool, f64), margin: 
     }
 }
 
+/// The held-out RMS of `errors` where `kind` shows: its regime's, the
+/// worst load's for the width, the static part for the shape; NaN where
+/// the record has no held-out sample there.
+pub(super) fn regime_rms(kind: EffectKind, errors: &ModelErrors) -> f64 {
+    match kind {
+        EffectKind::LoadDependentWidth => {
+            // Per load: the worst load's RMS is where a width error shows.
+            errors.loads.iter().map(|l| l.rms).fold(f64::NAN, f64::max)
+        }
+        EffectKind::ConstraintShape => errors.static_shape,
+        _ => errors
+            .regimes
+            .iter()
+            .find(|r| r.regime == kind.regime())
+            .map_or(f64::NAN, |r| r.rms),
+    }
+}
+
 /// One fitted variant of a candidate: base parameters, their
 /// coefficients, the effects, their errors and residual, and the
 /// parameters it adds.
@@ -691,20 +709,7 @@ fn judge(
     let n_train = setup.train_idx.len();
     let bic_drop = super::evaluate::bic(current_errors.rms_train, n_train, corr, current_params)
         - super::evaluate::bic(errors.rms_train, n_train, corr, n_params);
-    let regime_rms = |e: &ModelErrors| -> f64 {
-        match kind {
-            EffectKind::LoadDependentWidth => {
-                // Per load: the worst load's RMS is where a width error shows.
-                e.loads.iter().map(|l| l.rms).fold(f64::NAN, f64::max)
-            }
-            EffectKind::ConstraintShape => e.static_shape,
-            _ => e
-                .regimes
-                .iter()
-                .find(|r| r.regime == kind.regime())
-                .map_or(f64::NAN, |r| r.rms),
-        }
-    };
+    let regime_rms = |e: &ModelErrors| regime_rms(kind, e);
     let signature = Signature {
         regime: kind.regime(),
         rms_before: regime_rms(current_errors),
