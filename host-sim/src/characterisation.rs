@@ -118,6 +118,26 @@ pub fn isometric_run_on(mut rig: Rig, protocol: &IsometricProtocol) -> Vec<Sampl
     out
 }
 
+/// [`MOVES_WITH_FAST_CYCLE`], then a step up to 0.3 MPa held 5 s, a step
+/// down to 0.1 MPa held 5 s, and a ramp back to 0 (a negative rate is a
+/// step held that many seconds, [`run_moves`]).
+pub const MOVES_WITH_STEPS: [(f64, f64); 14] = [
+    (0.5, 0.05),
+    (0.0, 0.05),
+    (0.5, 0.05),
+    (0.0, 0.05),
+    (0.3, 0.05),
+    (0.15, 0.05),
+    (0.4, 0.05),
+    (0.25, 0.05),
+    (0.0, 0.05),
+    (0.5, 0.2),
+    (0.0, 0.2),
+    (0.3, -5.0),
+    (0.1, -5.0),
+    (0.0, 0.05),
+];
+
 /// Pressure moves of [`IsotonicProtocol::WITH_FAST_CYCLE`] after the
 /// settling, `(to MPa, rate MPa/s)`: two full cycles at 0.05 MPa/s,
 /// reversals inside the loop, one fast full cycle at 0.2 MPa/s (the example
@@ -160,6 +180,17 @@ impl IsotonicProtocol<'_> {
         settle_s: SETTLE_S,
         log_rate_hz: 25.0,
     };
+
+    /// [`MOVES_WITH_STEPS`] at every load of [`LOADS_N`], 2 s settling,
+    /// logged at 25 Hz: 486 s, 12 156 samples; the protocol
+    /// pam-lab/DIAGNOSE.md asks a user for (steps held for seconds show
+    /// creep and the loop at rest).
+    pub const WITH_STEPS: IsotonicProtocol<'static> = IsotonicProtocol {
+        loads_n: &LOADS_N,
+        moves: &MOVES_WITH_STEPS,
+        settle_s: SETTLE_S,
+        log_rate_hz: 25.0,
+    };
 }
 
 /// An isotonic run of `protocol` on `rig`. The load column is the hung
@@ -193,7 +224,8 @@ pub fn isotonic_run_on(mut rig: Rig, protocol: &IsotonicProtocol) -> Vec<Sample>
 
 /// At the rig's present load or clamp: `settle_s` at 0 MPa, then each of
 /// `moves` (`(to MPa, rate MPa/s)`) as a regulated ramp, logging a sample
-/// every `1/log_rate_hz` seconds.
+/// every `1/log_rate_hz` seconds. A negative rate is a step: the regulator's
+/// target jumps to `to` and holds there for `−rate` seconds.
 pub fn run_moves(
     rig: &mut Rig,
     moves: &[(f64, f64)],
@@ -208,6 +240,14 @@ pub fn run_moves(
     }
     let mut p = 0.0;
     for &(to, rate) in moves {
+        if rate < 0.0 {
+            for _ in 0..(-rate / dt).round() as usize {
+                out.push(rig.measure());
+                rig.advance_regulated(to, dt);
+            }
+            p = to;
+            continue;
+        }
         let n = ((to - p).abs() / rate / dt).round() as usize;
         let from = p;
         for k in 0..n {

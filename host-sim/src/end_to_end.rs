@@ -88,13 +88,18 @@ pub struct RigOutcome {
 /// The record a user's rig would log: [`IsotonicProtocol::WITH_FAST_CYCLE`]
 /// on `rig`'s muscle with the reference valves and sensors.
 pub fn characterise(rig: &EffectRig, seed: u64) -> Record {
+    characterise_with(rig, seed, &IsotonicProtocol::WITH_FAST_CYCLE)
+}
+
+/// [`characterise`] with another `protocol`.
+pub fn characterise_with(rig: &EffectRig, seed: u64, protocol: &IsotonicProtocol) -> Record {
     let sim = Rig::new(
         rig.muscle,
         PneumaticParams::DEFAULT,
-        IsotonicProtocol::WITH_FAST_CYCLE.loads_n[0],
+        protocol.loads_n[0],
         seed,
     );
-    let samples = isotonic_run_on(sim, &IsotonicProtocol::WITH_FAST_CYCLE);
+    let samples = isotonic_run_on(sim, protocol);
     to_record(format!("{} rig (seed {seed})", rig.name), &samples)
 }
 

@@ -4,8 +4,9 @@
 //! every effect rig and prints the table (host-sim/README.md).
 
 use host_sim::bench::BenchConfig;
+use host_sim::characterisation::IsotonicProtocol;
 use host_sim::effect_rigs::effect_rigs;
-use host_sim::end_to_end::{boot, characterise, identify, run_rig};
+use host_sim::end_to_end::{boot, characterise, characterise_with, identify, run_rig};
 use host_sim::scenarios::Scenario;
 
 /// The coulomb rig through fit and diagnose, tracked with each tool's blob.
@@ -147,4 +148,32 @@ fn a_corrupt_blob_from_the_pipeline_is_refused_at_boot_with_its_reason() {
     blob[last] ^= 1;
     let err = boot(&blob, &cfg, 200.0).expect_err("a corrupt blob is refused");
     assert!(err.contains("CRC"), "{err}");
+}
+
+/// The creep rig characterised with two steps held 5 s at every load
+/// ([`IsotonicProtocol::WITH_STEPS`]): its creep shows after the steps, its
+/// friction's minor loops at the inner reversals, and diagnose names both.
+/// Fitted creep first, the pair beats the memory alone by the evidence
+/// rule; creep fitted on the memory held as fitted alone does not (the
+/// memory took up part of the creep): diagnose's pair rule takes the
+/// first.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn creep_rig_with_held_steps_is_named_creep_and_memory() {
+    let rig = effect_rigs()
+        .into_iter()
+        .find(|r| r.name == "creep")
+        .unwrap();
+    for seed in [1, 2] {
+        let record = characterise_with(&rig, seed, &IsotonicProtocol::WITH_STEPS);
+        assert_eq!(record.len(), 12_156);
+        let id = identify(&record).expect("fit and diagnose accept the record");
+        for effect in ["creep", "non_local_memory"] {
+            assert!(
+                id.effects_added.contains(&effect),
+                "seed {seed}: diagnose added {:?}",
+                id.effects_added
+            );
+        }
+    }
 }
