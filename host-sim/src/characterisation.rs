@@ -121,22 +121,20 @@ pub fn isometric_run_on(mut rig: Rig, protocol: &IsometricProtocol) -> Vec<Sampl
 /// [`MOVES_WITH_FAST_CYCLE`], then a step up to 0.3 MPa held 5 s, a step
 /// down to 0.1 MPa held 5 s, and a ramp back to 0 (a negative rate is a
 /// step held that many seconds, [`run_moves`]).
-pub const MOVES_WITH_STEPS: [(f64, f64); 14] = [
-    (0.5, 0.05),
-    (0.0, 0.05),
-    (0.5, 0.05),
-    (0.0, 0.05),
-    (0.3, 0.05),
-    (0.15, 0.05),
-    (0.4, 0.05),
-    (0.25, 0.05),
-    (0.0, 0.05),
-    (0.5, 0.2),
-    (0.0, 0.2),
-    (0.3, -5.0),
-    (0.1, -5.0),
-    (0.0, 0.05),
-];
+pub const MOVES_WITH_STEPS: [(f64, f64); 14] = {
+    let steps = [(0.3, -5.0), (0.1, -5.0), (0.0, 0.05)];
+    let mut out = [(0.0, 0.0); 14];
+    let mut i = 0;
+    while i < out.len() {
+        out[i] = if i < MOVES_WITH_FAST_CYCLE.len() {
+            MOVES_WITH_FAST_CYCLE[i]
+        } else {
+            steps[i - MOVES_WITH_FAST_CYCLE.len()]
+        };
+        i += 1;
+    }
+    out
+};
 
 /// Pressure moves of [`IsotonicProtocol::WITH_FAST_CYCLE`] after the
 /// settling, `(to MPa, rate MPa/s)`: two full cycles at 0.05 MPa/s,

@@ -9,12 +9,17 @@ use host_sim::effect_rigs::effect_rigs;
 use host_sim::end_to_end::{boot, characterise, characterise_with, identify, run_rig};
 use host_sim::scenarios::Scenario;
 
+/// host-sim's effect rig of that name.
+fn rig_named(name: &str) -> host_sim::effect_rigs::EffectRig {
+    effect_rigs()
+        .into_iter()
+        .find(|r| r.name == name)
+        .expect("a rig of that name")
+}
+
 /// The coulomb rig through fit and diagnose, tracked with each tool's blob.
 fn coulomb_run() -> host_sim::end_to_end::RigOutcome {
-    let rig = effect_rigs()
-        .into_iter()
-        .find(|r| r.name == "coulomb")
-        .unwrap();
+    let rig = rig_named("coulomb");
     let cfg = BenchConfig::default_with_seed(3);
     run_rig(&rig, &[Scenario::triangle(4, 4.0)], &cfg)
 }
@@ -103,10 +108,7 @@ fn coulomb_rig_diagnosed_blob_tracks_no_worse_than_fits() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn rate_rig_diagnosed_rate_law_keeps_its_loop_at_rest_and_does_not_trip() {
-    let rig = effect_rigs()
-        .into_iter()
-        .find(|r| r.name == "rate")
-        .unwrap();
+    let rig = rig_named("rate");
     let cfg = BenchConfig::default_with_seed(1);
     let outcome = run_rig(&rig, &[Scenario::triangle(8, 4.0)], &cfg);
     let id = outcome
@@ -160,10 +162,7 @@ fn a_corrupt_blob_from_the_pipeline_is_refused_at_boot_with_its_reason() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn creep_rig_with_held_steps_is_named_creep_and_memory() {
-    let rig = effect_rigs()
-        .into_iter()
-        .find(|r| r.name == "creep")
-        .unwrap();
+    let rig = rig_named("creep");
     for seed in [1, 2] {
         let record = characterise_with(&rig, seed, &IsotonicProtocol::WITH_STEPS);
         assert_eq!(record.len(), 12_156);

@@ -360,37 +360,23 @@ mod tests {
         // host-sim's creep rig with holds: memory alone 0.0109, the pair
         // 0.0086 (21 % lower), its holds 0.0145 -> 0.0110.
         let without = errors(0.0109, 0.0145, -500.0);
-        assert!(earns_together(
-            creep,
-            &errors(0.0086, 0.0110, -540.0),
-            &without,
-            &cfg
-        ));
-        // Each cut short of the rule fails it.
-        assert!(!earns_together(
-            creep,
-            &errors(0.0095, 0.0110, -540.0),
-            &without,
-            &cfg
-        ));
-        assert!(!earns_together(
-            creep,
-            &errors(0.0086, 0.0135, -540.0),
-            &without,
-            &cfg
-        ));
-        assert!(!earns_together(
-            creep,
-            &errors(0.0086, 0.0110, -505.0),
-            &without,
-            &cfg
-        ));
-        // No held-out sample in its regime: no evidence.
-        assert!(!earns_together(
-            creep,
-            &errors(0.0086, f64::NAN, -540.0),
-            &without,
-            &cfg
-        ));
+        // (held-out RMS, RMS in the holds, BIC) with creep, and the verdict:
+        // the rig's pair; each cut short of the rule; no held-out sample in
+        // its regime (no evidence).
+        let cases = [
+            ((0.0086, 0.0110, -540.0), true),
+            ((0.0095, 0.0110, -540.0), false),
+            ((0.0086, 0.0135, -540.0), false),
+            ((0.0086, 0.0110, -505.0), false),
+            ((0.0086, f64::NAN, -540.0), false),
+        ];
+        for ((rms, hold, bic), earns) in cases {
+            let with = errors(rms, hold, bic);
+            assert_eq!(
+                earns_together(creep, &with, &without, &cfg),
+                earns,
+                "{rms} {hold} {bic}"
+            );
+        }
     }
 }
