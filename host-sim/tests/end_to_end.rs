@@ -90,7 +90,7 @@ fn coulomb_rig_end_to_end_names_no_dynamic_effect_and_both_blobs_track() {
 /// on this triangle) and on the Festo set whole holds drop out (10 cm,
 /// test 10: 13.2 → 15.9 kPa).
 #[test]
-#[ignore = "open: the memory's feedforward trails the paper's at set-point turns: 0.0021 against 0.0017 here (issue 32)"]
+#[ignore = "open: diagnose's blob (fit's table and the memory) tracks this triangle at 0.0021 against fit's 0.0017 (issue 32)"]
 fn coulomb_rig_diagnosed_blob_tracks_no_worse_than_fits() {
     let outcome = coulomb_run();
     let r = &outcome.runs[0];
