@@ -265,35 +265,29 @@ pub(super) fn search(
                     .and_then(|q| q.rounds.get(1))
                     .and_then(|r| r.candidates.iter().find(|c| c.name == x))
                     .map(|c| c.earned);
+                let y_alone = first.iter().find(|c| c.name == y);
+                let x_kind = EffectKind::ALL.into_iter().find(|k| k.name() == x);
                 // Fitted in the path's order, `x` then `y`, the two effects
                 // may do better together than `x` fitted on `y` held as it
                 // was fitted alone (an effect fitted first takes up part of
                 // the other): the path against `y` alone, by the evidence
                 // rule's three cuts, counts too.
-                let together = || {
-                    let y_alone = first.iter().find(|c| c.name == y)?;
-                    let x_kind = EffectKind::ALL.into_iter().find(|k| k.name() == x)?;
-                    Some(earns_together(x_kind, &path.errors, &y_alone.errors, cfg))
-                };
-                let earns = together() == Some(true)
-                    || match on_y {
-                        Some(e) => e,
-                        None => {
-                            // The second effect did not earn its place alone:
-                            // fit the first on top of it here.
-                            let y_alone = first.iter().find(|c| c.name == y);
-                            let x_kind = EffectKind::ALL.into_iter().find(|k| k.name() == x);
-                            match (y_alone, x_kind) {
-                                (Some(yc), Some(xk)) => {
-                                    let mut on = start.with(yc);
-                                    candidates_on(setup, &mut on, &[xk], cfg, progress)
-                                        .first()
-                                        .is_some_and(|c| c.earned)
-                                }
-                                _ => false,
-                            }
+                let together = matches!(
+                    (y_alone, x_kind),
+                    (Some(yc), Some(xk)) if earns_together(xk, &path.errors, &yc.errors, cfg)
+                );
+                let earns = together
+                    || on_y.unwrap_or_else(|| match (y_alone, x_kind) {
+                        // The second effect did not earn its place alone:
+                        // fit the first on top of it here.
+                        (Some(yc), Some(xk)) => {
+                            let mut on = start.with(yc);
+                            candidates_on(setup, &mut on, &[xk], cfg, progress)
+                                .first()
+                                .is_some_and(|c| c.earned)
                         }
-                    };
+                        _ => false,
+                    });
                 (!earns).then(|| format!("{x} does not earn its place on top of {y} alone"))
             }
             _ => None,
