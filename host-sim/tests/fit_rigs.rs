@@ -106,8 +106,11 @@ fn small_muscle_isometric_records_fit_at_every_length() {
             r.shape.statement(),
         );
         assert_eq!(r.test_kind, TestKind::Isometric, "{length_m} m");
+        // One muscle at six lengths: each fits within about 20× the
+        // 0.0007 MPa pressure noise (0.0046–0.0069 MPa measured). With the
+        // held contraction weighted as a reading, 0.30 m missed by 0.031.
         assert!(
-            r.test.total.pressure_rms_mpa < 0.04,
+            r.test.total.pressure_rms_mpa < 0.015,
             "{length_m} m: {}",
             r.test.to_text()
         );
