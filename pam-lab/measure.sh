@@ -72,7 +72,7 @@ if [ -n "$festo" ]; then
     train=$work/festo/rec/${L}cm_train.csv test=$work/festo/rec/${L}cm_test.csv
     run "festo/fit_$L" "$bin" fit "$train" --validate "$test" --holdout none --no-plot -o "$work/festo/fit_$L"
     run "festo/cubic_$L" "$bin" fit "$train" --validate "$test" --holdout none --no-static-shape --no-plot -o "$work/festo/cubic_$L"
-    run "festo/diag_$L" "$bin" diagnose "$train" --validate "$test" --no-plot -o "$work/festo/diag_$L"
+    run "festo/diag_$L" "$bin" diagnose "$train" --validate "$test" --holdout none --no-plot -o "$work/festo/diag_$L"
   done
 fi
 

@@ -211,6 +211,11 @@ enum Command {
         out: PathBuf,
         #[command(flatten)]
         fit: FitOptions,
+        /// How the static model diagnose writes is fitted on the whole
+        /// record, as `pam-lab fit --holdout` fits it: `every:K`, `tail:F` or
+        /// `none` (the diagnosis itself holds out its own segments).
+        #[arg(long, default_value = "every:4")]
+        holdout: Holdout,
         /// Most effects added, one per round, 0–5 (default 2; each round
         /// fits every remaining candidate, so a round costs about as much
         /// as the first).
@@ -302,13 +307,14 @@ fn main() -> ExitCode {
             data,
             out,
             fit,
+            holdout,
             max_effects,
             validate,
             no_plot,
             common,
         } => {
             let cfg = DiagnoseConfig {
-                fit: fit.config(Holdout::None),
+                fit: fit.config(holdout),
                 max_effects: max_effects.map_or(DiagnoseConfig::default().max_effects, usize::from),
                 ..DiagnoseConfig::default()
             };

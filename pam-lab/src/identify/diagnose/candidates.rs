@@ -416,7 +416,7 @@ pub struct Signature {
 
 /// The best of `starts` for `kind`'s own parameters on `coeffs` with
 /// `current` effects, by least squares on the training samples.
-fn fit_effect_on(
+pub(super) fn fit_effect_on(
     setup: &Setup<'_>,
     kind: EffectKind,
     current: Effects,
