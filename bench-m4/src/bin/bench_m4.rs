@@ -690,6 +690,13 @@ fn main() -> ! {
         }),
         ..table
     };
+    // What `diagnose` writes for host-sim's coulomb and memory rigs (the
+    // end-to-end run): fit's static model, its stroke table, with the
+    // memory.
+    let table_memory = Effects {
+        memory: memory_only.memory,
+        ..table
+    };
     // Every effect pam-core has: the five of the rows above and a 20 ms
     // pressure lag.
     let all = Effects {
@@ -737,6 +744,11 @@ fn main() -> ! {
         ),
         ("table", Feedforward::HysteresisEffects(table), None),
         ("table_lag", Feedforward::HysteresisEffects(table_lag), None),
+        (
+            "table_memory",
+            Feedforward::HysteresisEffects(table_memory),
+            None,
+        ),
         ("effects", Feedforward::HysteresisEffects(all), None),
     ];
     for (name, ff, adaptation) in feedforwards {

@@ -7,9 +7,9 @@ use crate::identify::fit::FitConfig;
 #[derive(Clone, Debug)]
 pub struct DiagnoseConfig {
     /// Settings of the base fit. Its `holdout` is how the static model
-    /// diagnose writes is fitted on the whole record, as `pam-lab fit`
-    /// with that hold-out writes it; the diagnosis itself fits on its own
-    /// training part.
+    /// diagnose writes is fitted on the record, as `pam-lab fit` with that
+    /// hold-out writes it; the diagnosis itself fits on its own training
+    /// part.
     pub fit: FitConfig,
     /// Smallest relative cut of the held-out RMS for a candidate to count.
     pub min_improvement: f64,

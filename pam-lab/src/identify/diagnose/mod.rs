@@ -124,10 +124,36 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
 
 /// [`diagnose`], telling `progress` about each stage (the base fit, every
 /// candidate of every round) as it starts.
+///
+/// The static model `pam-lab fit` writes for the record (what diagnose
+/// writes under its effects when the path keeps fit's stroke table,
+/// [`static_model_as_fit_writes`]) depends on the record and the options
+/// alone: it is fitted on a thread of its own beside the diagnosis, which
+/// joins it at the end (on the 103 500-row record of `measure.sh --long`
+/// it takes about 8 s, as long as `pam-lab fit`).
 pub fn diagnose_with_progress(
     record: &Record,
     cfg: &DiagnoseConfig,
     progress: &(dyn Fn(&str) + Sync),
+) -> Result<DiagnoseReport, DiagnoseError> {
+    std::thread::scope(|scope| {
+        let as_fit = cfg
+            .fit
+            .static_shape
+            .then(|| scope.spawn(|| static_model_as_fit_writes(record, &cfg.fit)));
+        diagnose_beside(record, cfg, progress, move || {
+            as_fit.and_then(parallel::joined)
+        })
+    })
+}
+
+/// [`diagnose_with_progress`] with `as_fit`, which gives the static model
+/// `pam-lab fit` writes for the record when it is the model written.
+fn diagnose_beside(
+    record: &Record,
+    cfg: &DiagnoseConfig,
+    progress: &(dyn Fn(&str) + Sync),
+    as_fit: impl FnOnce() -> Option<StaticModel>,
 ) -> Result<DiagnoseReport, DiagnoseError> {
     let samples = &record.samples;
     if samples.len() < 100 {
@@ -196,9 +222,9 @@ pub fn diagnose_with_progress(
     // static shape on the same training part, as fit keeps it (its BIC and
     // its own held-out cycles: a table that stands in for a creep or a rate
     // law fails there), the table variant of the `constraint_shape`
-    // candidate, which competes with the others. fit's static model on
-    // the whole record is written when that variant is chosen, and fitted
-    // then ([`static_model_as_fit_writes`]).
+    // candidate, which competes with the others. fit's static model as
+    // `pam-lab fit` writes it for the record is written when that variant
+    // is chosen, and fitted then ([`static_model_as_fit_writes`]).
     let with_table = cfg.fit.static_shape;
     progress(&format!(
         "fitting the paper's model on {} training samples{}",
@@ -403,7 +429,7 @@ pub fn diagnose_with_progress(
 
     // The table variant is fit's static model on the training part. What
     // diagnose writes is the static model `pam-lab fit` writes for the
-    // whole record with the same options (`cfg.fit`, its `--holdout`
+    // record with the same options (`cfg.fit`, its `--holdout`
     // included): diagnose's model is fit's with the effects, so the two
     // blobs differ by the effects alone. (Written from the whole record
     // with nothing held out while fit kept every fourth cycle out, the
@@ -435,16 +461,16 @@ pub fn diagnose_with_progress(
                     ..setup.base_effects
                 });
     let whole = if table_only {
-        progress("fitting fit's static model on the record as fit does, the model written");
-        static_model_as_fit_writes(record, &fit_cfg, cfg.fit.holdout).map(
-            |(params, coeffs, shape, samples)| {
-                let effects = Effects {
-                    shape: Some(shape),
-                    ..current
-                };
-                (params, coeffs, effects, samples)
-            },
-        )
+        progress(
+            "the static model fit writes for the record (fitted beside the diagnosis): written",
+        );
+        as_fit().map(|(params, coeffs, shape, samples)| {
+            let effects = Effects {
+                shape: Some(shape),
+                ..current
+            };
+            (params, coeffs, effects, samples)
+        })
     } else {
         None
     };
@@ -546,23 +572,22 @@ pub fn diagnose_with_progress(
     })
 }
 
-/// fit's static model (the paper's model and the stroke table) on
-/// `record`, with `fit_cfg`'s options and `holdout`, as `pam-lab fit`
-/// writes it: its parameters, coefficients, shape and training samples;
-/// `None` when fit refuses it or keeps no table.
-fn static_model_as_fit_writes(
-    record: &Record,
-    fit_cfg: &FitConfig,
-    holdout: Holdout,
-) -> Option<(
+/// A static model: the paper's parameters, their coefficients, the
+/// stroke table's shape, and the number of training samples it was fitted
+/// on.
+type StaticModel = (
     pam_core::Params,
     Coeffs,
     pam_core::effects::ConstraintShape,
     usize,
-)> {
+);
+
+/// fit's static model (the paper's model and the stroke table) on
+/// `record` with `fit_cfg`'s options, its hold-out included, as `pam-lab
+/// fit` writes it; `None` when fit refuses it or keeps no table.
+fn static_model_as_fit_writes(record: &Record, fit_cfg: &FitConfig) -> Option<StaticModel> {
     let mut cfg = fit_cfg.clone();
     cfg.static_shape = true;
-    cfg.holdout = holdout;
     let fit = crate::identify::fit::fit(record, &cfg).ok()?;
     let shape = fit.constraint_shape?;
     let samples = fit.training_samples(&record.samples);

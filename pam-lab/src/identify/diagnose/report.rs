@@ -128,8 +128,9 @@ pub struct DiagnoseReport {
     pub base_params: Params,
     /// The final model's base parameters (refitted jointly with its effects).
     pub final_params: Params,
-    /// How the model written differs from the one judged, when it does
-    /// (the static shape's table variant is refitted on the whole record).
+    /// How the model written differs from the path's, when it does: the
+    /// path's effects on fit's static model held, and the static model as
+    /// `pam-lab fit` writes it for the record (see `static_kept.rs`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub final_refit: Option<String>,
     /// On an isometric record: how much later the final model's pressure
