@@ -387,7 +387,7 @@ fn diagnose_beside(
     } = outcome;
     // The path's dynamic effects on fit's static model, held, unless the
     // path's joint refit of the base earns its place (`static_kept.rs`).
-    let kept = static_kept::on_fits_static_model(&setup, &chosen, cfg);
+    let kept = static_kept::on_fits_static_model(&setup, &chosen, cfg, progress);
     let static_note = kept.as_ref().map(|k| {
         let stays = static_kept::static_model_stays(
             chosen.errors.rms_heldout,

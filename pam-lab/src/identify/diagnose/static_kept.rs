@@ -53,6 +53,7 @@ pub(super) fn on_fits_static_model(
     setup: &Setup<'_>,
     path: &Path,
     cfg: &DiagnoseConfig,
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Option<Kept> {
     let (params, shape) = setup.stroke_table?;
     path.effects.shape?;
@@ -65,6 +66,14 @@ pub(super) fn on_fits_static_model(
         return None;
     }
     let coeffs = Coeffs::new(params).ok()?;
+    progress(&format!(
+        "fitting {} on fit's static model, held",
+        kinds
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>()
+            .join(" + ")
+    ));
     let mut effects = Effects {
         shape: Some(shape),
         pressure_lag: path.effects.pressure_lag,
