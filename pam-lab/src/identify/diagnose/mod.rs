@@ -127,7 +127,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
 ///
 /// The static model `pam-lab fit` writes for the record (what diagnose
 /// writes under its effects when the path keeps fit's stroke table,
-/// [`static_model_as_fit_writes`]) depends on the record and the options
+/// `static_model_as_fit_writes`) depends on the record and the options
 /// alone: it is fitted on a thread of its own beside the diagnosis, which
 /// joins it at the end (on the 103 500-row record of `measure.sh --long`
 /// it takes about 8 s, as long as `pam-lab fit`).
