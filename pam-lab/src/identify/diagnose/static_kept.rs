@@ -47,8 +47,8 @@ const DYNAMIC: [EffectKind; 4] = [
 /// `path`'s dynamic effects fitted, one after the other in the path's
 /// order and then once more each with the others on, on fit's static
 /// model of the training part (`Setup::stroke_table`) with the path's
-/// pressure lag; `None` when the path's static shape is not fit's stroke
-/// table, or it adds no dynamic effect.
+/// pressure lag; `None` when fit keeps no stroke table on the training
+/// part, the path has no static shape, or it adds no dynamic effect.
 pub(super) fn on_fits_static_model(
     setup: &Setup<'_>,
     path: &Path,
