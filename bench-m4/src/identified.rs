@@ -161,6 +161,7 @@ pub const GPI4: GpiTable<4, 6> = GpiTable {
 pub const PREISACH16: PreisachTable<16, 6> = PreisachTable {
     lo_mpa: 0.01,
     step_mpa: 0.03,
+    max_pressure_mpa: 0.5,
     min_load_n: 100.0,
     load_step_n: 100.0,
     grid: [

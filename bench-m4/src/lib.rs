@@ -1,6 +1,6 @@
-//! Baseline hysteresis models for the on-target benchmarks, beside pam-core:
-//! the two usual alternatives for PAM hysteresis, each predicting contraction
-//! from pressure one sample at a time.
+//! Baseline hysteresis models for the on-target benchmarks, beside pam-core's
+//! paper model: the usual alternatives for PAM hysteresis, each predicting
+//! contraction from pressure one sample at a time.
 //!
 //! * [`PrandtlIshlinskii`]: `N` play operators with thresholds `r_i` and
 //!   weights `w_i`, plus a bias and a linear term:
@@ -8,12 +8,11 @@
 //! * [`GeneralizedPi`]: the generalised Prandtl–Ishlinskii model, `N` play
 //!   operators (4 in the bench) plus a cubic input nonlinearity:
 //!   `x = b + c₁p + c₂p² + c₃p³ + Σ w_i·play_{r_i}(p)`.
-//! * [`Preisach`]: an `N × N` half-grid of relays `(α_i, β_j)`, `α_i > β_j`
-//!   (`N(N+1)/2` relays, 136 for `N = 16`), plus a bias and a linear term:
-//!   `x = b + w_lin·p + Σ w_ij·relay_ij(p)`.
+//! * [`Preisach`]: pam-core's Preisach model (`pam_core::preisach`, with its
+//!   inverse), re-exported: the bench measures the code the chip would run.
 //!
 //! # Load
-//! Both are identified separately at each load of a grid (`L` loads from
+//! Each is identified separately at each load of a grid (`L` loads from
 //! `min_load_n` in steps of `load_step_n`; the characterisation run's
 //! 100, 200, …, 600 N). The model holds the coefficients of its *active
 //! load*; when the measured load differs from it by more than
@@ -21,17 +20,8 @@
 //! becomes the measured one and the coefficients are interpolated linearly
 //! between the two neighbouring grid loads (a rare, slower path; the
 //! per-sample path is the operator update and the weighted sum). The
-//! operator/relay states depend only on the pressure history and carry over
-//! a load change.
-//!
-//! # Preisach state
-//! In one row `i` of the half-grid (fixed switch-up threshold `α_i`) the
-//! relays that are on always form a prefix `j < c_i` in `β_j` (a relay with a
-//! higher switch-down threshold was switched off at least as recently). So
-//! the 136 relay states are stored exactly as one byte per row, `c_i`, and
-//! the weighted sum is `Σ_i E_i[c_i]` with the row prefix sums `E_i` (the
-//! discrete Everett function): `N` table look-ups instead of 136 tests. The
-//! unit tests check this against a relay-by-relay reference.
+//! operator states depend only on the pressure history and carry over a
+//! load change.
 //!
 //! No allocation and no panic paths (indexing through iterators and `get`).
 #![cfg_attr(not(test), no_std)]
@@ -377,207 +367,10 @@ impl<const N: usize> GeneralizedPi<N> {
 }
 
 // ---------------------------------------------------------------------------
-// Preisach
+// Preisach: pam-core's (one model, one home: the bench measures what the
+// firmware would run).
 
-/// Coefficients of a Preisach model at one load.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PreisachCoeffs<const N: usize> {
-    /// Bias, contraction.
-    pub bias: f32,
-    /// Linear term, contraction per MPa.
-    pub linear: f32,
-    /// Row prefix sums of the relay weights: `everett[i][k] = Σ_{j ≤ k} w_ij`
-    /// for `k ≤ i`; entries `k > i` repeat `everett[i][i]` (never read).
-    pub everett: [[f32; N]; N],
-}
-
-impl<const N: usize> PreisachCoeffs<N> {
-    /// From relay weights `w[i][j]` (`j ≤ i`; the rest ignored).
-    pub fn from_weights(bias: f32, linear: f32, w: &[[f32; N]; N]) -> Self {
-        let mut everett = [[0.0; N]; N];
-        for (i, (row, wrow)) in everett.iter_mut().zip(w.iter()).enumerate() {
-            let mut acc = 0.0;
-            for (k, (e, &wk)) in row.iter_mut().zip(wrow.iter()).enumerate() {
-                if k <= i {
-                    acc += wk;
-                }
-                *e = acc;
-            }
-        }
-        PreisachCoeffs {
-            bias,
-            linear,
-            everett,
-        }
-    }
-}
-
-/// A Preisach model identified at a grid of `L` loads.
-///
-/// Relay thresholds: `β_j = lo + j·Δ` and `α_i = lo + (i + 1)·Δ`, `Δ = step_mpa`;
-/// relay `(i, j)`, `j ≤ i`, switches on at `p ≥ α_i` and off at `p ≤ β_j`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PreisachTable<const N: usize, const L: usize> {
-    /// `lo`, MPa.
-    pub lo_mpa: f32,
-    /// `Δ`, MPa.
-    pub step_mpa: f32,
-    /// First grid load, N.
-    pub min_load_n: f32,
-    /// Grid step, N.
-    pub load_step_n: f32,
-    /// Coefficients at each grid load.
-    pub grid: [PreisachCoeffs<N>; L],
-}
-
-impl<const N: usize, const L: usize> PreisachTable<N, L> {
-    /// Coefficients at `load_n`, interpolated linearly between grid loads.
-    pub fn at_load(&self, load_n: f32) -> PreisachCoeffs<N> {
-        let (k, t) = grid_position(load_n, self.min_load_n, self.load_step_n, L);
-        let (Some(a), Some(b)) = (self.grid.get(k), self.grid.get(k + 1).or(self.grid.get(k)))
-        else {
-            return PreisachCoeffs {
-                bias: 0.0,
-                linear: 0.0,
-                everett: [[0.0; N]; N],
-            };
-        };
-        let mut everett = a.everett;
-        for (row, brow) in everett.iter_mut().zip(b.everett.iter()) {
-            for (e, &eb) in row.iter_mut().zip(brow.iter()) {
-                *e = lerp(*e, eb, t);
-            }
-        }
-        PreisachCoeffs {
-            bias: lerp(a.bias, b.bias, t),
-            linear: lerp(a.linear, b.linear, t),
-            everett,
-        }
-    }
-}
-
-/// A running Preisach model: active coefficients and the relay states (one
-/// byte per row: how many relays of the row are on, see the crate docs).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Preisach<const N: usize> {
-    lo_mpa: f32,
-    inv_step: f32,
-    coeffs: PreisachCoeffs<N>,
-    load_n: f32,
-    last_mpa: f32,
-    on: [u8; N],
-}
-
-impl<const N: usize> Preisach<N> {
-    /// A model at `load_n` with every relay off (the muscle empty), then
-    /// driven to `pressure_mpa`.
-    pub fn new<const L: usize>(
-        table: &PreisachTable<N, L>,
-        load_n: f32,
-        pressure_mpa: f32,
-    ) -> Self {
-        let mut m = Preisach {
-            lo_mpa: table.lo_mpa,
-            inv_step: 1.0 / table.step_mpa,
-            coeffs: table.at_load(load_n),
-            load_n,
-            last_mpa: 0.0,
-            on: [0; N],
-        };
-        m.update_state(pressure_mpa);
-        m
-    }
-
-    /// The active load, N.
-    pub fn load_n(&self) -> f32 {
-        self.load_n
-    }
-
-    /// Relays on per row (`0..=i + 1` in row `i`).
-    pub fn rows_on(&self) -> &[u8; N] {
-        &self.on
-    }
-
-    /// The last finite pressure, MPa.
-    pub fn last_mpa(&self) -> f32 {
-        self.last_mpa
-    }
-
-    /// Whether relay `(i, j)` (`j ≤ i`) is on.
-    pub fn relay(&self, i: usize, j: usize) -> bool {
-        j <= i && self.on.get(i).is_some_and(|&c| j < usize::from(c))
-    }
-
-    /// Switch the active load when `load_n` is more than
-    /// [`LOAD_THRESHOLD_N`] from it (non-finite loads are ignored).
-    #[inline(always)]
-    pub fn update_load<const L: usize>(&mut self, table: &PreisachTable<N, L>, load_n: f32) {
-        let d = load_n - self.load_n;
-        if d.abs() > LOAD_THRESHOLD_N {
-            self.load_n = load_n;
-            self.coeffs = table.at_load(load_n);
-        }
-    }
-
-    /// Switch the relays for `pressure_mpa` (a non-finite pressure holds them).
-    #[inline(always)]
-    pub fn update_state(&mut self, pressure_mpa: f32) {
-        if !pressure_mpa.is_finite() {
-            return;
-        }
-        self.last_mpa = pressure_mpa;
-        let n = N as f32;
-        // u = (p − lo)/Δ: rows with α_i ≤ p are i + 1 ≤ u, relays with
-        // β_j < p are j < u.
-        let u = clamp((pressure_mpa - self.lo_mpa) * self.inv_step, 0.0, n);
-        let up = u as usize; // rows i < up switch fully on
-        let down = {
-            let f = u as usize;
-            if (f as f32) < u {
-                f + 1
-            } else {
-                f
-            }
-        }; // relays j ≥ down switch off
-        let down = if down > N { N } else { down } as u8;
-        for (i, c) in self.on.iter_mut().enumerate() {
-            let mut v = *c;
-            if i < up {
-                v = (i + 1) as u8;
-            }
-            if v > down {
-                v = down;
-            }
-            *c = v;
-        }
-    }
-
-    /// The predicted contraction for the current state.
-    #[inline(always)]
-    pub fn output(&self) -> f32 {
-        let c = &self.coeffs;
-        let mut x = c.bias + c.linear * self.last_mpa;
-        for (row, &k) in c.everett.iter().zip(self.on.iter()) {
-            if let Some(&e) = row.get(usize::from(k).wrapping_sub(1)) {
-                x += e;
-            }
-        }
-        x
-    }
-
-    /// One sample: load, state, output (contraction).
-    #[inline]
-    pub fn step<const L: usize>(
-        &mut self,
-        table: &PreisachTable<N, L>,
-        pressure_mpa: f32,
-        load_n: f32,
-    ) -> f32 {
-        self.update_load(table, load_n);
-        self.update_state(pressure_mpa);
-        self.output()
-    }
-}
+pub use pam_core::preisach::{Preisach, PreisachCoeffs, PreisachTable};
 
 #[cfg(test)]
 mod tests {
@@ -654,97 +447,6 @@ mod tests {
         assert!((x - 0.03).abs() < 1e-6);
         let x = m.step(&t, f32::NAN, f32::NAN);
         assert!((x - 0.03).abs() < 1e-6 && m.load_n() == 900.0);
-    }
-
-    /// Relay-by-relay reference Preisach.
-    struct Relays<const N: usize> {
-        lo: f32,
-        step: f32,
-        s: [[bool; N]; N],
-    }
-
-    #[allow(clippy::needless_range_loop)]
-    impl<const N: usize> Relays<N> {
-        fn update(&mut self, p: f32) {
-            for i in 0..N {
-                let alpha = self.lo + (i + 1) as f32 * self.step;
-                for j in 0..=i {
-                    let beta = self.lo + j as f32 * self.step;
-                    if p >= alpha {
-                        self.s[i][j] = true;
-                    }
-                    if p <= beta {
-                        self.s[i][j] = false;
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    #[allow(clippy::needless_range_loop)]
-    fn preisach_rows_are_exactly_the_relays() {
-        const N: usize = 8;
-        let mut w = [[0.0f32; N]; N];
-        for (i, row) in w.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = 0.001 * (1 + i * N + j) as f32;
-            }
-        }
-        let table = PreisachTable::<N, 1> {
-            lo_mpa: 0.01,
-            step_mpa: 0.06,
-            min_load_n: 100.0,
-            load_step_n: 100.0,
-            grid: [PreisachCoeffs::from_weights(0.02, 0.05, &w)],
-        };
-        let mut m = Preisach::new(&table, 100.0, 0.0);
-        let mut r = Relays::<N> {
-            lo: 0.01,
-            step: 0.06,
-            s: [[false; N]; N],
-        };
-        // A pseudo-random walk with exact grid hits, reversals everywhere.
-        let mut seed = 12345u32;
-        let mut p = 0.0f32;
-        for k in 0..5000 {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            let d = ((seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 0.2;
-            p = (p + d).clamp(-0.05, 0.55);
-            if k % 97 == 0 {
-                // Reversals just beside the thresholds.
-                p = 0.0101 + 0.06 * (k % 9) as f32;
-            }
-            let x = m.step(&table, p, 100.0);
-            r.update(p);
-            let mut want = 0.02 + 0.05 * p;
-            for i in 0..N {
-                for j in 0..=i {
-                    assert_eq!(m.relay(i, j), r.s[i][j], "step {k} p {p} relay ({i},{j})");
-                    if r.s[i][j] {
-                        want += w[i][j];
-                    }
-                }
-            }
-            assert!((x - want).abs() < 1e-5, "step {k}: {x} vs {want}");
-        }
-    }
-
-    #[test]
-    fn preisach_non_finite_pressure_holds() {
-        let w = [[0.01f32; 4]; 4];
-        let table = PreisachTable::<4, 1> {
-            lo_mpa: 0.0,
-            step_mpa: 0.1,
-            min_load_n: 100.0,
-            load_step_n: 100.0,
-            grid: [PreisachCoeffs::from_weights(0.0, 0.0, &w)],
-        };
-        let mut m = Preisach::new(&table, 100.0, 0.25);
-        let before = m.step(&table, 0.25, 100.0);
-        assert_eq!(*m.rows_on(), [1, 2, 0, 0]);
-        assert_eq!(m.step(&table, f32::NAN, 100.0), before);
-        assert_eq!(m.step(&table, f32::INFINITY, 100.0), before);
     }
 
     #[test]

@@ -18,6 +18,7 @@ pub mod load_family;
 pub mod load_model;
 mod math;
 pub mod params;
+pub mod preisach;
 pub mod simulator;
 pub mod tracker;
 

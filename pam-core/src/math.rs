@@ -131,6 +131,24 @@ pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
     }
 }
 
+/// The least `f32` above `x` (`f32::next_up`, which is newer than the
+/// crate's MSRV); NaN and +∞ are returned as they are.
+pub(crate) fn next_up(x: f32) -> f32 {
+    if x.is_nan() || x == f32::INFINITY {
+        return x;
+    }
+    let bits = x.to_bits();
+    if x == 0.0 {
+        return f32::from_bits(1);
+    }
+    f32::from_bits(if x > 0.0 { bits + 1 } else { bits - 1 })
+}
+
+/// The greatest `f32` below `x`: `-next_up(-x)`.
+pub(crate) fn next_down(x: f32) -> f32 {
+    -next_up(-x)
+}
+
 /// `f64` square root for the host-side model path (construction, fitting):
 /// `libm::sqrt` so that the same code builds without `std`.
 #[inline]
@@ -155,6 +173,22 @@ pub fn clamp_f64(x: f64, lo: f64, hi: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn next_up_and_down_are_the_neighbouring_floats() {
+        for x in [0.0f32, -0.0, 1e-30, 0.07, -0.07, 3.5, 1e30, -1e30] {
+            let (u, d) = (next_up(x), next_down(x));
+            assert!(u > x && d < x, "{x}");
+            assert_eq!(next_down(u), if x == 0.0 { 0.0 } else { x }, "{x}");
+            assert!(
+                (u - x) <= f32::EPSILON * x.abs().max(f32::MIN_POSITIVE),
+                "{x}"
+            );
+        }
+        assert!(next_up(f32::NAN).is_nan());
+        assert_eq!(next_up(f32::INFINITY), f32::INFINITY);
+        assert_eq!(next_down(f32::NEG_INFINITY), f32::NEG_INFINITY);
+    }
 
     #[test]
     fn the_power_is_within_two_millionths_on_the_rate_laws_range() {

@@ -203,6 +203,16 @@ fn bench_preisach16_step(m: &mut Preisach16, t: &Preisach16Table, p: f32, load_n
     m.step(t, p, load_n)
 }
 
+/// A feedforward period of the Preisach model: the pressure that reaches
+/// `x` from the present state, and the state moved there.
+#[no_mangle]
+#[inline(never)]
+fn bench_preisach16_feedforward(m: &mut Preisach16, x: f32) -> f32 {
+    let p = m.inverse_pressure_mpa(x);
+    m.update_state(p);
+    p
+}
+
 #[no_mangle]
 #[inline(never)]
 fn bench_controller_step(c: &mut Controller, io: &mut SimIo<'_>, x_ref: f32) -> f32 {
@@ -520,6 +530,23 @@ fn main() -> ! {
     let mut pr = Preisach16::new(pr_table, 200.0, 0.0);
     group("preisach16_step", &drive, |p| {
         bench_preisach16_step(&mut pr, pr_table, p, 200.0)
+    });
+    // Its inverse as a feedforward runs it: the contraction the forward
+    // model gives on the same triangle, reached period by period; then the
+    // slowest path, a contraction beyond reach in each direction (every
+    // threshold walked, every relay of a falling path summed).
+    let mut ff = Preisach16::new(pr_table, 200.0, 0.0);
+    let mut fwd = ff;
+    let targets: [f32; 16] = core::array::from_fn(|i| {
+        fwd.update_state(drive[i]);
+        fwd.output()
+    });
+    group("preisach16_feedforward", &targets, |x| {
+        bench_preisach16_feedforward(&mut ff, x)
+    });
+    let far: [f32; 8] = core::array::from_fn(|i| if i % 2 == 0 { 1.0 } else { -1.0 });
+    group("preisach16_feedforward_far", &far, |x| {
+        bench_preisach16_feedforward(&mut ff, x)
     });
 
     // The firmware's controller with the in-memory simulated sensors and

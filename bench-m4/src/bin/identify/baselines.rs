@@ -169,6 +169,7 @@ pub(crate) fn identify_preisach(samples: &[Sample], heldout: &[bool]) -> Preisac
     let mut table = PreisachTable {
         lo_mpa: PREISACH_LO_MPA,
         step_mpa: PREISACH_STEP_MPA,
+        max_pressure_mpa: PREISACH_MAX_MPA,
         min_load_n: MIN_LOAD_N,
         load_step_n: LOAD_STEP_N,
         grid: [zero; L],
@@ -206,6 +207,9 @@ pub(crate) fn identify_preisach(samples: &[Sample], heldout: &[bool]) -> Preisac
             }
         }
         table.grid[g] = PreisachCoeffs::from_weights(x[0] as f32, x[1] as f32, &w);
+    }
+    if let Err(e) = table.validate() {
+        panic!("pam-core refuses the identified Preisach table: {e}");
     }
     table
 }

@@ -88,6 +88,9 @@ const GPI_MAX_THRESHOLDS_MPA: [f32; 6] = [0.04, 0.06, 0.08, 0.12, 0.16, 0.25];
 /// Preisach grid: lowest switch-down threshold and spacing, MPa.
 const PREISACH_LO_MPA: f32 = 0.01;
 const PREISACH_STEP_MPA: f32 = 0.03;
+/// Preisach pressure range, MPa: the characterisation run's highest
+/// pressure (the top threshold, 0.01 + 16·0.03, is below it).
+const PREISACH_MAX_MPA: f32 = 0.5;
 /// Ridge on the relative scale of the normal equations' diagonal.
 const RIDGE: f64 = 1e-6;
 /// Candidate shapes of the non-local memory (chosen on training data, with
@@ -224,9 +227,10 @@ fn main() {
     src.push_str("    ],\n};\n\n");
     let _ = writeln!(
         src,
-        "/// Preisach, {N} × {N} half-grid (row prefix sums), at {L} loads.\npub const PREISACH16: PreisachTable<{N}, {L}> = PreisachTable {{\n    lo_mpa: {},\n    step_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
+        "/// Preisach, {N} × {N} half-grid (row prefix sums), at {L} loads.\npub const PREISACH16: PreisachTable<{N}, {L}> = PreisachTable {{\n    lo_mpa: {},\n    step_mpa: {},\n    max_pressure_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
         f32_literal(pr.lo_mpa),
         f32_literal(pr.step_mpa),
+        f32_literal(pr.max_pressure_mpa),
         f32_literal(pr.min_load_n),
         f32_literal(pr.load_step_n)
     );

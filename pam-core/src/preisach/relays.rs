@@ -1,0 +1,181 @@
+//! [`Preisach`]: the running model, its relay states one byte per row, and
+//! the forward step (pressure and load in, contraction out).
+
+use super::table::{PreisachCoeffs, PreisachTable};
+use super::LOAD_THRESHOLD_N;
+use crate::math::{clamp, next_down, next_up};
+
+/// A running Preisach model: the active load's coefficients and the relay
+/// states (one byte per row: how many relays of the row are on, see the
+/// [module docs](super)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Preisach<const N: usize> {
+    pub(super) lo_mpa: f32,
+    pub(super) step_mpa: f32,
+    pub(super) inv_step: f32,
+    pub(super) max_pressure_mpa: f32,
+    pub(super) coeffs: PreisachCoeffs<N>,
+    /// The least pressure at which row `i` switches fully on in
+    /// [`Self::update_state`]'s arithmetic (`α_i`, moved up by the `f32`
+    /// steps its rounding needs): the inverse's thresholds.
+    pub(super) alpha: [f32; N],
+    /// The greatest pressure at which relay column `j` switches off
+    /// (`β_j`, moved down likewise).
+    pub(super) beta: [f32; N],
+    load_n: f32,
+    pub(super) last_mpa: f32,
+    pub(super) on: [u8; N],
+}
+
+impl<const N: usize> Preisach<N> {
+    /// A model at `load_n` with every relay off (the muscle empty), then
+    /// driven to `pressure_mpa`. The table is the caller's validated one
+    /// ([`PreisachTable::validate`]).
+    pub fn new<const L: usize>(
+        table: &PreisachTable<N, L>,
+        load_n: f32,
+        pressure_mpa: f32,
+    ) -> Self {
+        let mut m = Preisach {
+            lo_mpa: table.lo_mpa,
+            step_mpa: table.step_mpa,
+            inv_step: 1.0 / table.step_mpa,
+            max_pressure_mpa: table.max_pressure_mpa,
+            coeffs: table.at_load(load_n),
+            alpha: [0.0; N],
+            beta: [0.0; N],
+            load_n,
+            last_mpa: 0.0,
+            on: [0; N],
+        };
+        m.alpha = core::array::from_fn(|i| m.threshold_up(i));
+        m.beta = core::array::from_fn(|j| m.threshold_down(j));
+        m.update_state(pressure_mpa);
+        m
+    }
+
+    fn threshold_up(&self, i: usize) -> f32 {
+        let target = (i + 1) as f32;
+        let mut a = self.lo_mpa + target * self.step_mpa;
+        for _ in 0..4 {
+            if self.grid_coordinate(a) >= target {
+                break;
+            }
+            a = next_up(a);
+        }
+        a
+    }
+
+    fn threshold_down(&self, j: usize) -> f32 {
+        let target = j as f32;
+        let mut b = self.lo_mpa + target * self.step_mpa;
+        for _ in 0..4 {
+            if self.grid_coordinate(b) <= target {
+                break;
+            }
+            b = next_down(b);
+        }
+        b
+    }
+
+    /// The active load, N.
+    pub fn load_n(&self) -> f32 {
+        self.load_n
+    }
+
+    /// Relays on per row (`0..=i + 1` in row `i`).
+    pub fn rows_on(&self) -> &[u8; N] {
+        &self.on
+    }
+
+    /// The last finite pressure, MPa.
+    pub fn last_mpa(&self) -> f32 {
+        self.last_mpa
+    }
+
+    /// Highest pressure the model is calibrated to, MPa.
+    pub fn max_pressure_mpa(&self) -> f32 {
+        self.max_pressure_mpa
+    }
+
+    /// Whether relay `(i, j)` (`j ≤ i`) is on.
+    pub fn relay(&self, i: usize, j: usize) -> bool {
+        j <= i && self.on.get(i).is_some_and(|&c| j < usize::from(c))
+    }
+
+    /// Switch the active load when `load_n` is more than
+    /// [`LOAD_THRESHOLD_N`] from it (non-finite loads are ignored).
+    #[inline(always)]
+    pub fn update_load<const L: usize>(&mut self, table: &PreisachTable<N, L>, load_n: f32) {
+        let d = load_n - self.load_n;
+        if d.abs() > LOAD_THRESHOLD_N {
+            self.load_n = load_n;
+            self.coeffs = table.at_load(load_n);
+        }
+    }
+
+    /// `(p − lo)/Δ` clamped to `[0, N]`: rows `i` with `i + 1 ≤ u` have
+    /// reached `α_i`, relays `j ≥ u` are at or below `β_j`. The one
+    /// arithmetic both the step and the inverse judge a threshold by.
+    #[inline(always)]
+    pub(super) fn grid_coordinate(&self, pressure_mpa: f32) -> f32 {
+        clamp((pressure_mpa - self.lo_mpa) * self.inv_step, 0.0, N as f32)
+    }
+
+    /// Switch the relays for `pressure_mpa` (a non-finite pressure holds them).
+    #[inline(always)]
+    pub fn update_state(&mut self, pressure_mpa: f32) {
+        if !pressure_mpa.is_finite() {
+            return;
+        }
+        self.last_mpa = pressure_mpa;
+        let u = self.grid_coordinate(pressure_mpa);
+        // `u` is in [0, N]: the casts are floors and cannot wrap.
+        let up = u as usize; // rows i < up switch fully on
+        let down = {
+            let f = u as usize;
+            if (f as f32) < u {
+                f + 1
+            } else {
+                f
+            }
+        }; // relays j ≥ down switch off
+        let down = if down > N { N } else { down } as u8;
+        for (i, c) in self.on.iter_mut().enumerate() {
+            let mut v = *c;
+            if i < up {
+                v = (i + 1) as u8;
+            }
+            if v > down {
+                v = down;
+            }
+            *c = v;
+        }
+    }
+
+    /// The predicted contraction for the current state.
+    #[inline(always)]
+    pub fn output(&self) -> f32 {
+        let c = &self.coeffs;
+        let mut x = c.bias + c.linear * self.last_mpa;
+        for (row, &k) in c.everett.iter().zip(self.on.iter()) {
+            if let Some(&e) = row.get(usize::from(k).wrapping_sub(1)) {
+                x += e;
+            }
+        }
+        x
+    }
+
+    /// One sample: load, state, output (contraction).
+    #[inline]
+    pub fn step<const L: usize>(
+        &mut self,
+        table: &PreisachTable<N, L>,
+        pressure_mpa: f32,
+        load_n: f32,
+    ) -> f32 {
+        self.update_load(table, load_n);
+        self.update_state(pressure_mpa);
+        self.output()
+    }
+}

@@ -1,0 +1,184 @@
+//! The Preisach model's coefficients: per load, the bias, the linear term
+//! and the relay weights as row prefix sums; the grid of loads, the relay
+//! thresholds and the pressure range, validated once.
+
+use crate::error::Error;
+
+/// Coefficients of a Preisach model at one load.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PreisachCoeffs<const N: usize> {
+    /// Bias, contraction.
+    pub bias: f32,
+    /// Linear term, contraction per MPa.
+    pub linear: f32,
+    /// Row prefix sums of the relay weights: `everett[i][k] = Σ_{j ≤ k} w_ij`
+    /// for `k ≤ i`; entries `k > i` repeat `everett[i][i]` (never read).
+    pub everett: [[f32; N]; N],
+}
+
+impl<const N: usize> PreisachCoeffs<N> {
+    /// All zero: contraction 0 at every pressure.
+    pub const ZERO: PreisachCoeffs<N> = PreisachCoeffs {
+        bias: 0.0,
+        linear: 0.0,
+        everett: [[0.0; N]; N],
+    };
+
+    /// From relay weights `w[i][j]` (`j ≤ i`; the rest ignored).
+    pub fn from_weights(bias: f32, linear: f32, w: &[[f32; N]; N]) -> Self {
+        let mut everett = [[0.0; N]; N];
+        for (i, (row, wrow)) in everett.iter_mut().zip(w.iter()).enumerate() {
+            let mut acc = 0.0;
+            for (k, (e, &wk)) in row.iter_mut().zip(wrow.iter()).enumerate() {
+                if k <= i {
+                    acc += wk;
+                }
+                *e = acc;
+            }
+        }
+        PreisachCoeffs {
+            bias,
+            linear,
+            everett,
+        }
+    }
+
+    /// Relay `(i, j)`'s weight, `E_i[j] − E_i[j−1]` (0 outside the half-grid).
+    pub fn weight(&self, i: usize, j: usize) -> f32 {
+        if j > i {
+            return 0.0;
+        }
+        let Some(row) = self.everett.get(i) else {
+            return 0.0;
+        };
+        let at = |k: usize| row.get(k).copied().unwrap_or(0.0);
+        match j.checked_sub(1) {
+            Some(before) => at(j) - at(before),
+            None => at(0),
+        }
+    }
+}
+
+/// A Preisach model identified at a grid of `L` loads.
+///
+/// Relay thresholds: `β_j = lo + j·Δ` and `α_i = lo + (i + 1)·Δ`,
+/// `Δ = step_mpa`; relay `(i, j)`, `j ≤ i`, switches on at `p ≥ α_i` and off
+/// at `p ≤ β_j`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PreisachTable<const N: usize, const L: usize> {
+    /// `lo`, MPa.
+    pub lo_mpa: f32,
+    /// `Δ`, MPa.
+    pub step_mpa: f32,
+    /// Highest pressure the model is calibrated to (the inverse's limit), MPa.
+    pub max_pressure_mpa: f32,
+    /// First grid load, N.
+    pub min_load_n: f32,
+    /// Grid step, N.
+    pub load_step_n: f32,
+    /// Coefficients at each grid load.
+    pub grid: [PreisachCoeffs<N>; L],
+}
+
+impl<const N: usize, const L: usize> PreisachTable<N, L> {
+    /// Finite everywhere; `Δ > 0`, `lo ≥ 0` and the top threshold
+    /// `lo + N·Δ` at most `max_pressure_mpa`; a positive load step; at
+    /// least one relay row and one load.
+    pub fn validate(&self) -> Result<(), Error> {
+        if N == 0 || L == 0 {
+            return Err(Error::OutOfRange(
+                "preisach",
+                "needs at least one relay row and one load",
+            ));
+        }
+        let scalars = [
+            ("preisach.lo_mpa", self.lo_mpa),
+            ("preisach.step_mpa", self.step_mpa),
+            ("preisach.max_pressure_mpa", self.max_pressure_mpa),
+            ("preisach.min_load_n", self.min_load_n),
+            ("preisach.load_step_n", self.load_step_n),
+        ];
+        for (name, v) in scalars {
+            if !v.is_finite() {
+                return Err(Error::NonFinite(name));
+            }
+        }
+        let finite_coeffs = self.grid.iter().all(|c| {
+            c.bias.is_finite()
+                && c.linear.is_finite()
+                && c.everett.iter().flatten().all(|e| e.is_finite())
+        });
+        if !finite_coeffs {
+            return Err(Error::NonFinite("preisach.grid"));
+        }
+        if !(self.step_mpa > 0.0) {
+            return Err(Error::OutOfRange("preisach.step_mpa", "must be > 0"));
+        }
+        if !(self.lo_mpa >= 0.0) {
+            return Err(Error::OutOfRange("preisach.lo_mpa", "must be >= 0"));
+        }
+        let top = self.lo_mpa + N as f32 * self.step_mpa;
+        if !(top <= self.max_pressure_mpa * (1.0 + 1e-6)) {
+            return Err(Error::OutOfRange(
+                "preisach.max_pressure_mpa",
+                "must be at least the top threshold lo + N*step",
+            ));
+        }
+        if !(self.load_step_n > 0.0) {
+            return Err(Error::OutOfRange("preisach.load_step_n", "must be > 0"));
+        }
+        Ok(())
+    }
+
+    /// Coefficients at `load_n`, interpolated linearly between grid loads
+    /// (clamped to the grid; NaN → the first load).
+    pub fn at_load(&self, load_n: f32) -> PreisachCoeffs<N> {
+        let (k, t) = grid_position(load_n, self.min_load_n, self.load_step_n, L);
+        let (Some(a), Some(b)) = (self.grid.get(k), self.grid.get(k + 1).or(self.grid.get(k)))
+        else {
+            return PreisachCoeffs::ZERO;
+        };
+        let mut everett = a.everett;
+        for (row, brow) in everett.iter_mut().zip(b.everett.iter()) {
+            for (e, &eb) in row.iter_mut().zip(brow.iter()) {
+                *e = lerp(*e, eb, t);
+            }
+        }
+        PreisachCoeffs {
+            bias: lerp(a.bias, b.bias, t),
+            linear: lerp(a.linear, b.linear, t),
+            everett,
+        }
+    }
+}
+
+/// Position of `load_n` on a grid of `l` loads: the lower grid index and the
+/// fraction towards the next one; clamped to the grid, NaN → the first load.
+pub(super) fn grid_position(
+    load_n: f32,
+    min_load_n: f32,
+    load_step_n: f32,
+    l: usize,
+) -> (usize, f32) {
+    let last = l.saturating_sub(1) as f32;
+    let t = (load_n - min_load_n) / load_step_n;
+    let t = if t >= 0.0 {
+        if t <= last {
+            t
+        } else {
+            last
+        }
+    } else {
+        0.0
+    };
+    // `t` is in [0, last]: the cast is a floor and cannot wrap.
+    let k = t as usize;
+    let k = if k + 1 >= l { l.saturating_sub(2) } else { k };
+    (k, t - k as f32)
+}
+
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + (b - a) * t
+}
