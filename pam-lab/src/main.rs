@@ -147,6 +147,23 @@ enum Command {
         #[command(flatten)]
         common: Common,
     },
+    /// Put a record on the accuracy × instructions plane: the model fit
+    /// writes and the Preisach model, each identified on the training
+    /// cycles and scored on the held-out ones, beside their instructions
+    /// on the chip (bench-m4's counts); says which pam would flash and why.
+    /// Writes compare.json into the output directory.
+    Compare {
+        /// Isotonic measurement CSV (`t_s,load_n,pressure_mpa,contraction`).
+        data: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(short, long, default_value = "pam-lab-compare", value_name = "DIR")]
+        out: PathBuf,
+        /// Held-out part: `every:K` (every K-th cycle) or `tail:F` (last fraction F).
+        #[arg(long, default_value = "every:4")]
+        holdout: Holdout,
+        #[command(flatten)]
+        common: Common,
+    },
     /// Drive a model with a record's measured pressure and load; write the
     /// predicted and measured contraction and the error as CSV.
     #[command(allow_negative_numbers = true)]
@@ -276,6 +293,12 @@ fn main() -> ExitCode {
             !no_plot,
             common,
         ),
+        Command::Compare {
+            data,
+            out,
+            holdout,
+            common,
+        } => run_compare(&data, &out, holdout, common),
         Command::Simulate {
             model,
             data,
@@ -542,6 +565,32 @@ fn run_fit(
     rep.done();
     if !common.quiet {
         print_out(&(commands::fit_text(&outcome, &record, cfg) + &wrote(&written)))?;
+    }
+    Ok(())
+}
+
+fn run_compare(data: &Path, out: &Path, holdout: Holdout, common: Common) -> Result<()> {
+    let mut set = OutputSet::new();
+    set.protect(data);
+    set.into_dir(out)?;
+    set.check_in_dir(out, &["compare.json"])?;
+    let rep = Reporter::new(common);
+    rep.stage(&format!("reading {}", data.display()));
+    let record = commands::read_record(data, Purpose::Fit)?;
+    rep.stage("fitting the paper's model and identifying the Preisach model");
+    let cfg = FitConfig {
+        holdout,
+        ..FitConfig::default()
+    };
+    let comparison = pam_lab::evaluate::families::compare(&record, &cfg)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", data.display()))?;
+    let json = serde_json::to_vec_pretty(&comparison)?;
+    set.add_bytes(&out.join("compare.json"), &json)?;
+    let written = set.commit()?;
+    rep.done();
+    if !common.quiet {
+        let text = pam_lab::evaluate::families::text(&comparison, &data.display().to_string());
+        print_out(&(text + &wrote(&written)))?;
     }
     Ok(())
 }

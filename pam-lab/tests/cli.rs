@@ -179,6 +179,46 @@ fn simulate_refuses_a_corrupt_blob_and_keeps_the_old_output() {
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "old");
 }
 
+#[test]
+fn compare_puts_fit_and_the_preisach_model_side_by_side_and_refuses_isometric() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("rig.csv");
+    write_record(&data, &[100.0, 300.0]);
+    let out = dir.path().join("cmp");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "compare",
+        data.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(stdout.contains("pam would flash: fit's model"), "{stdout}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
+    let entries = json["entries"].as_array().unwrap();
+    assert_eq!(entries.len(), 2);
+    assert_eq!(entries[0]["flashable"], true);
+    assert_eq!(entries[1]["flashable"], false);
+    assert_eq!(json["chosen"], 0);
+    for e in entries {
+        let rms = e["heldout_rms"].as_f64().unwrap();
+        // The record's noise is 0.0008: both models are within a few of it.
+        assert!(rms > 0.0 && rms < 0.01, "{e}");
+        assert!(e["instructions_mean"].as_f64().unwrap() > 0.0, "{e}");
+    }
+    // An isometric record: refused with the reason, nothing written.
+    let iso = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/isometric.csv");
+    let out = dir.path().join("iso");
+    let (ok, _, stderr) = pam_lab(&[
+        "compare",
+        iso.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok && stderr.contains("isotonic"), "{stderr}");
+    assert!(!out.join("compare.json").exists());
+}
+
 fn pam_lab_in(dir: &Path, args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_pam-lab"))
         .args(args)

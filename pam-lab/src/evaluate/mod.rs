@@ -1,7 +1,10 @@
 //! Evaluation: a model driven over a record ([`simulate`], pam-core's
 //! simulator, the one record simulator) and its errors against the
-//! measurement ([`errors`]: per load and branch, noise floor, correlation).
+//! measurement ([`errors`]: per load and branch, noise floor, correlation);
+//! [`families`]: a record on the accuracy × instructions plane, fit's model
+//! beside the Preisach model.
 
 pub mod crossing;
 pub mod errors;
+pub mod families;
 pub mod simulate;

@@ -160,58 +160,21 @@ pub(crate) fn identify_gpi(
     table
 }
 
+/// Preisach-16 by pam-lab's identification (the one a user's record gets
+/// from `pam-lab compare`) on the bench's grid; grid loads without training
+/// samples are filled there.
 pub(crate) fn identify_preisach(samples: &[Sample], heldout: &[bool]) -> PreisachTable<N, L> {
-    let zero = PreisachCoeffs {
-        bias: 0.0,
-        linear: 0.0,
-        everett: [[0.0; N]; N],
-    };
-    let mut table = PreisachTable {
+    let grid = pam_lab::identify::preisach::Grid {
         lo_mpa: PREISACH_LO_MPA,
         step_mpa: PREISACH_STEP_MPA,
         max_pressure_mpa: PREISACH_MAX_MPA,
         min_load_n: MIN_LOAD_N,
         load_step_n: LOAD_STEP_N,
-        grid: [zero; L],
     };
-    let relays = N * (N + 1) / 2;
-    let first = &samples[0];
-    let mut m = Preisach::new(&table, first.load_n as f32, first.pressure_mpa as f32);
-    let mut ne = Normal::new(relays + 2);
-    let mut row = vec![0.0; relays + 2];
-    for (s, &h) in samples.iter().zip(heldout) {
-        m.update_load(&table, s.load_n as f32);
-        m.update_state(s.pressure_mpa as f32);
-        if h {
-            continue;
-        }
-        row[0] = 1.0;
-        row[1] = f64::from(m.last_mpa());
-        let mut c = 2;
-        for i in 0..N {
-            for j in 0..=i {
-                row[c] = if m.relay(i, j) { 1.0 } else { 0.0 };
-                c += 1;
-            }
-        }
-        ne.add(grid_index(m.load_n()), &row, s.contraction);
+    match pam_lab::identify::preisach::identify(samples, heldout, &grid) {
+        Ok(t) => t,
+        Err(e) => panic!("Preisach-16 not identified: {e}"),
     }
-    for g in 0..L {
-        let x = ne.solve(g);
-        let mut w = [[0.0f32; N]; N];
-        let mut c = 2;
-        for (i, wr) in w.iter_mut().enumerate() {
-            for v in wr.iter_mut().take(i + 1) {
-                *v = x[c] as f32;
-                c += 1;
-            }
-        }
-        table.grid[g] = PreisachCoeffs::from_weights(x[0] as f32, x[1] as f32, &w);
-    }
-    if let Err(e) = table.validate() {
-        panic!("pam-core refuses the identified Preisach table: {e}");
-    }
-    table
 }
 
 /// Grid loads with training samples (by the grid the tables use).

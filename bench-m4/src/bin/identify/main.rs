@@ -41,7 +41,7 @@ use std::path::PathBuf;
 
 use bench_m4::{
     GeneralizedPi, GpiCoeffs, GpiTable, PiCoeffs, PiTable, PrandtlIshlinskii, Preisach,
-    PreisachCoeffs, PreisachTable,
+    PreisachTable,
 };
 use host_sim::characterisation::{
     isotonic_run_on, IsotonicProtocol, LOADS_N, PRESSURE_KNOTS_MPA, RAMP_MPA_PER_S,

@@ -104,12 +104,7 @@ pub(crate) fn identify_models(train: &[Sample], heldout: &[bool], pam: &PamFit) 
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .expect("thresholds")
         .0;
-    let mut preisach = identify_preisach(train, heldout);
-    fill_untrained(&mut preisach.grid, &trained, |a, b, t| PreisachCoeffs {
-        bias: lerp(a.bias, b.bias, t),
-        linear: lerp(a.linear, b.linear, t),
-        everett: core::array::from_fn(|i| lerp_arr(&a.everett[i], &b.everett[i], t)),
-    });
+    let preisach = identify_preisach(train, heldout);
     Models {
         coeffs,
         memory,
