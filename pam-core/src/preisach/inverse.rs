@@ -30,9 +30,9 @@ impl<const N: usize> Preisach<N> {
     /// the path reaches gives the end of the range. Never NaN: a NaN
     /// contraction holds the present pressure (clamped to the range).
     ///
-    /// Work: rising, at most `N` rows (one table read each); falling, at
-    /// most `N` columns of up to `N` rows each (one subtraction a relay);
-    /// one division.
+    /// Work: rising, at most `N` rows (four table reads each); falling, at
+    /// most `N` columns (four reads each) and one pass over the rows for
+    /// their runs; one division.
     pub fn inverse_pressure_mpa(&self, contraction: f32) -> f32 {
         let p_max = self.max_pressure_mpa;
         let p0 = clamp(self.last_mpa, 0.0, p_max);
@@ -51,20 +51,20 @@ impl<const N: usize> Preisach<N> {
     }
 
     fn rising(&self, mut base: f32, x: f32, p0: f32) -> f32 {
-        let lin = self.coeffs.linear;
+        let c = &self.coeffs;
+        let lin = c.linear;
         let mut lo = p0;
         // Rows below `⌊u(p0)⌋` reached their `α_i`: fully on, no step.
         let first = self.grid_coordinate(p0) as usize;
         let rows = self
-            .coeffs
-            .everett
+            .on
             .iter()
-            .zip(self.on.iter())
             .zip(self.alpha.iter())
             .enumerate()
             .skip(first);
-        for (i, ((row, &k), &alpha)) in rows {
-            if usize::from(k) > i {
+        for (i, (&k, &alpha)) in rows {
+            let k = usize::from(k);
+            if k > i {
                 // Fully on already: no step.
                 continue;
             }
@@ -82,12 +82,7 @@ impl<const N: usize> Preisach<N> {
                     lo.max(next_down(alpha))
                 };
             }
-            let full = row.get(i).copied().unwrap_or(0.0);
-            let now = row
-                .get(usize::from(k).wrapping_sub(1))
-                .copied()
-                .unwrap_or(0.0);
-            base += full - now;
+            base += c.row_prefix(i, i + 1) - c.row_prefix(i, k);
             if base + lin * alpha >= x - REACHED {
                 return alpha;
             }
@@ -97,8 +92,15 @@ impl<const N: usize> Preisach<N> {
     }
 
     fn falling(&self, mut base: f32, x: f32, p0: f32) -> f32 {
-        let lin = self.coeffs.linear;
+        let c = &self.coeffs;
+        let lin = c.linear;
         let mut hi = p0;
+        // The rows with relay `j` on are `j..end` (the counts on are
+        // `c_i = min(i + 1, g_i)` with `g` non-increasing in `i`, an
+        // invariant of `update_state`: a rise sets `g` to `N` on a prefix
+        // of the rows, a fall caps it everywhere); going down the columns,
+        // `end` only grows, so one pass over the rows finds every run.
+        let mut end = 0;
         for (j, &beta) in self.beta.iter().enumerate().rev() {
             if !(beta < hi) {
                 // Column `j` is off already at the present pressure.
@@ -110,23 +112,15 @@ impl<const N: usize> Preisach<N> {
                 return if p > beta { p } else { hi.min(next_up(beta)) };
             }
             // At `β_j` relay `j` turns off in every row that has it on:
-            // rows `j, j + 1, …` up to the first without it (the rows on
-            // are `c_i = min(i + 1, g_i)` with `g` non-increasing in `i`,
-            // an invariant of `update_state`, so those rows are
-            // contiguous).
-            let mut drop = 0.0;
-            for (row, &k) in self.coeffs.everett.iter().zip(self.on.iter()).skip(j) {
-                if usize::from(k) <= j {
-                    break;
+            // none unless row `j` has it.
+            let has = |i: usize| self.on.get(i).is_some_and(|&k| usize::from(k) > j);
+            if has(j) {
+                end = end.max(j + 1);
+                while has(end) {
+                    end += 1;
                 }
-                let at = row.get(j).copied().unwrap_or(0.0);
-                let before = match j.checked_sub(1) {
-                    Some(b) => row.get(b).copied().unwrap_or(0.0),
-                    None => 0.0,
-                };
-                drop += at - before;
+                base -= c.column_run(j, j, end);
             }
-            base -= drop;
             if base + lin * beta <= x + REACHED {
                 return beta;
             }

@@ -23,17 +23,22 @@
 //! relays that are on always form a prefix `j < c_i` in `β_j` (a relay with
 //! a higher switch-down threshold was switched off at least as recently).
 //! So the relay states are one byte per row, `c_i`, and the weighted sum is
-//! `Σ_i E_i[c_i − 1]` with the row prefix sums `E_i` (the discrete Everett
-//! function): `N` table look-ups ([`Preisach::output`]).
+//! `Σ_i E_i[c_i − 1]`, `E_i` row `i`'s prefix sums, each the difference of
+//! two entries of the discrete Everett function (the weights summed over
+//! rows `≤ i` and columns `≤ k`, [`PreisachCoeffs::everett`]): `2N` table
+//! look-ups ([`Preisach::output`]). Rows turn fully on at their `α_i`, and
+//! every row's relays from column `j` on turn off at `β_j`, so the rows
+//! that have relay `j` on are always `j, j + 1, …` without a gap.
 //!
 //! # Inverse
 //! Along a monotone pressure path from the present state the output is a
 //! staircase plus the linear term: rising, row `i` turns fully on at `α_i`;
-//! falling, every row's relays from column `j` on turn off at `β_j`. So the
-//! pressure at which the model first reaches a contraction is found by
-//! walking the thresholds from the present pressure, one linear solve at
-//! the end ([`Preisach::inverse_pressure_mpa`]): a feedforward's
-//! inverse, exact, in at most `N` (rising) or `N²` (falling) table steps.
+//! falling, column `j`'s run of rows turns off at `β_j` (four entries of
+//! the Everett function). So the pressure at which the model first reaches
+//! a contraction is found by walking the thresholds from the present
+//! pressure, one linear solve at the end
+//! ([`Preisach::inverse_pressure_mpa`]): a feedforward's inverse, exact,
+//! in at most `N` steps either way.
 //!
 //! No allocation and no panic paths (indexing through iterators and `get`).
 

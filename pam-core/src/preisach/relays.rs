@@ -158,10 +158,15 @@ impl<const N: usize> Preisach<N> {
     pub fn output(&self) -> f32 {
         let c = &self.coeffs;
         let mut x = c.bias + c.linear * self.last_mpa;
+        // Row `i`'s prefix is `everett[i][k] − everett[i − 1][k]` (a zero
+        // row before the first), [`PreisachCoeffs::row_prefix`] unrolled.
+        let mut before: &[f32; N] = &[0.0; N];
         for (row, &k) in c.everett.iter().zip(self.on.iter()) {
-            if let Some(&e) = row.get(usize::from(k).wrapping_sub(1)) {
-                x += e;
+            let k = usize::from(k).wrapping_sub(1);
+            if let (Some(a), Some(b)) = (row.get(k), before.get(k)) {
+                x += a - b;
             }
+            before = row;
         }
         x
     }

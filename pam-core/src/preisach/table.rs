@@ -1,6 +1,6 @@
 //! The Preisach model's coefficients: per load, the bias, the linear term
-//! and the relay weights as row prefix sums; the grid of loads, the relay
-//! thresholds and the pressure range, validated once.
+//! and the relay weights as their discrete Everett function; the grid of
+//! loads, the relay thresholds and the pressure range, validated once.
 
 use crate::error::Error;
 
@@ -12,8 +12,11 @@ pub struct PreisachCoeffs<const N: usize> {
     pub bias: f32,
     /// Linear term, contraction per MPa.
     pub linear: f32,
-    /// Row prefix sums of the relay weights: `everett[i][k] = Σ_{j ≤ k} w_ij`
-    /// for `k ≤ i`; entries `k > i` repeat `everett[i][i]` (never read).
+    /// The discrete Everett function: `everett[i][k]` is the sum of the
+    /// weights of the relays `(i', j)` with `i' ≤ i` and `j ≤ k` (`j ≤ i'`:
+    /// the half-grid). A row's prefix and a column's run of rows are each
+    /// a difference of two or four entries ([`Self::row_prefix`],
+    /// [`Self::column_run`]).
     pub everett: [[f32; N]; N],
 }
 
@@ -27,14 +30,21 @@ impl<const N: usize> PreisachCoeffs<N> {
 
     /// From relay weights `w[i][j]` (`j ≤ i`; the rest ignored).
     pub fn from_weights(bias: f32, linear: f32, w: &[[f32; N]; N]) -> Self {
-        let mut everett = [[0.0; N]; N];
+        let mut everett = [[0.0f32; N]; N];
+        let mut above = [0.0f32; N];
         for (i, (row, wrow)) in everett.iter_mut().zip(w.iter()).enumerate() {
             let mut acc = 0.0;
-            for (k, (e, &wk)) in row.iter_mut().zip(wrow.iter()).enumerate() {
+            for (k, ((e, &wk), a)) in row
+                .iter_mut()
+                .zip(wrow.iter())
+                .zip(above.iter_mut())
+                .enumerate()
+            {
                 if k <= i {
                     acc += wk;
                 }
-                *e = acc;
+                *a += acc;
+                *e = *a;
             }
         }
         PreisachCoeffs {
@@ -44,19 +54,38 @@ impl<const N: usize> PreisachCoeffs<N> {
         }
     }
 
-    /// Relay `(i, j)`'s weight, `E_i[j] − E_i[j−1]` (0 outside the half-grid).
+    /// `everett[i][k]`, 0 for a row or column before the first.
+    #[inline(always)]
+    fn at(&self, i: usize, k: usize) -> f32 {
+        self.everett
+            .get(i)
+            .and_then(|r| r.get(k))
+            .copied()
+            .unwrap_or(0.0)
+    }
+
+    /// Row `i`'s weights of relays `j < count` (the contribution of a row
+    /// with `count` relays on): two entries.
+    #[inline(always)]
+    pub fn row_prefix(&self, i: usize, count: usize) -> f32 {
+        let k = count.wrapping_sub(1);
+        self.at(i, k) - self.at(i.wrapping_sub(1), k)
+    }
+
+    /// Column `j`'s weights over rows `from..to`: four entries.
+    #[inline(always)]
+    pub fn column_run(&self, j: usize, from: usize, to: usize) -> f32 {
+        let (last, before) = (to.wrapping_sub(1), from.wrapping_sub(1));
+        let jb = j.wrapping_sub(1);
+        (self.at(last, j) - self.at(last, jb)) - (self.at(before, j) - self.at(before, jb))
+    }
+
+    /// Relay `(i, j)`'s weight (0 outside the half-grid).
     pub fn weight(&self, i: usize, j: usize) -> f32 {
         if j > i {
             return 0.0;
         }
-        let Some(row) = self.everett.get(i) else {
-            return 0.0;
-        };
-        let at = |k: usize| row.get(k).copied().unwrap_or(0.0);
-        match j.checked_sub(1) {
-            Some(before) => at(j) - at(before),
-            None => at(0),
-        }
+        self.column_run(j, i, i + 1)
     }
 }
 

@@ -16,6 +16,10 @@ use crate::record::{Record, Sample};
 /// writes them; its README has how they are counted).
 const BENCH_COUNTS: &str = include_str!("../../../bench-m4/baseline.tsv");
 
+/// Most instructions one controller period may take on its slowest path
+/// (bench-m4's check, issue 30).
+const BUDGET: u32 = 2000;
+
 /// One model on the plane.
 #[derive(Clone, Debug, Serialize)]
 pub struct Entry {
@@ -158,14 +162,15 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
         format!(
             "fit's model is the most accurate model pam can flash. The Preisach model \
              predicts this record's held-out cycles {:.0} % better ({:.5} against {:.5}) at \
-             {:.0} instructions a sample against {:.0}, but no blob or firmware path \
-             carries it yet, and its feedforward's slowest period (a move across the \
-             whole range) is {far} instructions, over the controller's budget of 2000",
+             {:.0} instructions a sample against {:.0} (its feedforward's slowest period, a \
+             move across the whole range: {far}, {} the controller's budget of {BUDGET}), \
+             but no blob or firmware path carries it yet",
             100.0 * (1.0 - ratio),
             pr.heldout_rms,
             fit_e.heldout_rms,
             pr.instructions_mean,
             fit_e.instructions_mean,
+            if far <= BUDGET { "within" } else { "over" },
         )
     } else {
         format!(

@@ -227,7 +227,7 @@ fn main() {
     src.push_str("    ],\n};\n\n");
     let _ = writeln!(
         src,
-        "/// Preisach, {N} × {N} half-grid (row prefix sums), at {L} loads.\npub const PREISACH16: PreisachTable<{N}, {L}> = PreisachTable {{\n    lo_mpa: {},\n    step_mpa: {},\n    max_pressure_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
+        "/// Preisach, {N} × {N} half-grid (its discrete Everett function), at {L} loads.\npub const PREISACH16: PreisachTable<{N}, {L}> = PreisachTable {{\n    lo_mpa: {},\n    step_mpa: {},\n    max_pressure_mpa: {},\n    min_load_n: {},\n    load_step_n: {},\n    grid: [",
         f32_literal(pr.lo_mpa),
         f32_literal(pr.step_mpa),
         f32_literal(pr.max_pressure_mpa),
