@@ -531,6 +531,13 @@ fn main() -> ! {
     group("preisach16_step", &drive, |p| {
         bench_preisach16_step(&mut pr, pr_table, p, 200.0)
     });
+    // Two load switches: the new load's coefficients interpolated a few
+    // rows a step (pam-core's `LOAD_SWITCH_ROWS_PER_UPDATE`), every step of
+    // each switch measured, the one that completes it too.
+    let switch_loads: [f32; 16] = core::array::from_fn(|i| if i < 8 { 450.0 } else { 150.0 });
+    group("preisach16_load_switch", &switch_loads, |l| {
+        bench_preisach16_step(&mut pr, pr_table, 0.15, l)
+    });
     // Its inverse as a feedforward runs it: the contraction the forward
     // model gives on the same triangle, reached period by period; then the
     // slowest path, a contraction beyond reach in each direction (every

@@ -40,7 +40,7 @@ impl<const N: usize> Preisach<N> {
         if !contraction.is_finite() {
             return p0;
         }
-        let lin = self.coeffs.linear;
+        let lin = self.coeffs().linear;
         // The output on the path is `base + lin·p` between thresholds.
         let base = x_now - lin * self.last_mpa;
         if contraction >= x_now {
@@ -51,7 +51,7 @@ impl<const N: usize> Preisach<N> {
     }
 
     fn rising(&self, mut base: f32, x: f32, p0: f32) -> f32 {
-        let c = &self.coeffs;
+        let c = self.coeffs();
         let lin = c.linear;
         let mut lo = p0;
         // Rows below `⌊u(p0)⌋` reached their `α_i`: fully on, no step.
@@ -92,7 +92,7 @@ impl<const N: usize> Preisach<N> {
     }
 
     fn falling(&self, mut base: f32, x: f32, p0: f32) -> f32 {
-        let c = &self.coeffs;
+        let c = self.coeffs();
         let lin = c.linear;
         let mut hi = p0;
         // The rows with relay `j` on are `j..end` (the counts on are

@@ -2,7 +2,7 @@
 //! the forward step (pressure and load in, contraction out).
 
 use super::table::{PreisachCoeffs, PreisachTable};
-use super::LOAD_THRESHOLD_N;
+use super::{LOAD_SWITCH_ROWS_PER_UPDATE, LOAD_THRESHOLD_N};
 use crate::math::{clamp, next_down, next_up};
 
 /// A running Preisach model: the active load's coefficients and the relay
@@ -14,7 +14,12 @@ pub struct Preisach<const N: usize> {
     pub(super) step_mpa: f32,
     pub(super) inv_step: f32,
     pub(super) max_pressure_mpa: f32,
-    pub(super) coeffs: PreisachCoeffs<N>,
+    /// The active load's coefficients and the next load's while a load
+    /// switch makes them, a few rows an update ([`Self::update_load`]);
+    /// which is which, `flip` says (no 1 KB copy when a switch completes).
+    bufs: (PreisachCoeffs<N>, PreisachCoeffs<N>),
+    /// `bufs.1` is the active one.
+    flip: bool,
     /// The least pressure at which row `i` switches fully on in
     /// [`Self::update_state`]'s arithmetic (`α_i`, moved up by the `f32`
     /// steps its rounding needs): the inverse's thresholds.
@@ -25,6 +30,12 @@ pub struct Preisach<const N: usize> {
     load_n: f32,
     pub(super) last_mpa: f32,
     pub(super) on: [u8; N],
+    /// The load `next` is made for and the Everett rows made so far; `None`
+    /// without a switch under way.
+    switching: Option<(f32, usize)>,
+    /// Everett rows made per update ([`LOAD_SWITCH_ROWS_PER_UPDATE`], or
+    /// every row: [`Self::switch_loads_at_once`]).
+    rows_per_update: usize,
 }
 
 impl<const N: usize> Preisach<N> {
@@ -41,12 +52,15 @@ impl<const N: usize> Preisach<N> {
             step_mpa: table.step_mpa,
             inv_step: 1.0 / table.step_mpa,
             max_pressure_mpa: table.max_pressure_mpa,
-            coeffs: table.at_load(load_n),
+            bufs: (table.at_load(load_n), PreisachCoeffs::ZERO),
+            flip: false,
             alpha: [0.0; N],
             beta: [0.0; N],
             load_n,
             last_mpa: 0.0,
             on: [0; N],
+            switching: None,
+            rows_per_update: LOAD_SWITCH_ROWS_PER_UPDATE,
         };
         m.alpha = core::array::from_fn(|i| m.threshold_up(i));
         m.beta = core::array::from_fn(|j| m.threshold_down(j));
@@ -78,6 +92,16 @@ impl<const N: usize> Preisach<N> {
         b
     }
 
+    /// The active load's coefficients.
+    #[inline(always)]
+    pub fn coeffs(&self) -> &PreisachCoeffs<N> {
+        if self.flip {
+            &self.bufs.1
+        } else {
+            &self.bufs.0
+        }
+    }
+
     /// The active load, N.
     pub fn load_n(&self) -> f32 {
         self.load_n
@@ -103,14 +127,62 @@ impl<const N: usize> Preisach<N> {
         j <= i && self.on.get(i).is_some_and(|&c| j < usize::from(c))
     }
 
-    /// Switch the active load when `load_n` is more than
-    /// [`LOAD_THRESHOLD_N`] from it (non-finite loads are ignored).
+    /// Make a load switch at once in the next [`Self::update_load`] (an
+    /// offline evaluation of a record, where a switch's cost does not
+    /// matter and the coefficients should follow the load sample by
+    /// sample), instead of [`LOAD_SWITCH_ROWS_PER_UPDATE`] rows an update.
+    pub fn switch_loads_at_once(mut self) -> Self {
+        self.rows_per_update = N.max(1);
+        self
+    }
+
+    /// Whether a load switch is under way (the coefficients in use are
+    /// still the previous load's).
+    pub fn switching(&self) -> bool {
+        self.switching.is_some()
+    }
+
+    /// Follow the measured load: when `load_n` is more than
+    /// [`LOAD_THRESHOLD_N`] from the active load (or from the load a switch
+    /// under way is for), a switch to it starts; every call makes
+    /// [`LOAD_SWITCH_ROWS_PER_UPDATE`] rows of the new load's coefficients
+    /// (interpolated between its grid loads), and once all are made they
+    /// are used (a switch takes `N / LOAD_SWITCH_ROWS_PER_UPDATE` updates;
+    /// until then the previous load's are, whole). Non-finite loads are
+    /// ignored.
     #[inline(always)]
     pub fn update_load<const L: usize>(&mut self, table: &PreisachTable<N, L>, load_n: f32) {
-        let d = load_n - self.load_n;
-        if d.abs() > LOAD_THRESHOLD_N {
+        let towards = match self.switching {
+            Some((l, _)) => l,
+            None => self.load_n,
+        };
+        if (load_n - towards).abs() > LOAD_THRESHOLD_N {
+            self.switching = Some((load_n, 0));
+        }
+        if self.switching.is_some() {
+            self.advance_switch(table);
+        }
+    }
+
+    /// The rare path of [`Self::update_load`]: the next rows of a switch.
+    #[inline(never)]
+    fn advance_switch<const L: usize>(&mut self, table: &PreisachTable<N, L>) {
+        let Some((load_n, made)) = self.switching else {
+            return;
+        };
+        let end = (made + self.rows_per_update).min(N);
+        let next = if self.flip {
+            &mut self.bufs.0
+        } else {
+            &mut self.bufs.1
+        };
+        table.blend_rows_into(load_n, made..end, next);
+        if end >= N {
+            self.flip = !self.flip;
             self.load_n = load_n;
-            self.coeffs = table.at_load(load_n);
+            self.switching = None;
+        } else {
+            self.switching = Some((load_n, end));
         }
     }
 
@@ -156,7 +228,7 @@ impl<const N: usize> Preisach<N> {
     /// The predicted contraction for the current state.
     #[inline(always)]
     pub fn output(&self) -> f32 {
-        let c = &self.coeffs;
+        let c = self.coeffs();
         let mut x = c.bias + c.linear * self.last_mpa;
         // Row `i`'s prefix is `everett[i][k] − everett[i − 1][k]` (a zero
         // row before the first), [`PreisachCoeffs::row_prefix`] unrolled.

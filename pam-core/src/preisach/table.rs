@@ -183,6 +183,35 @@ impl<const N: usize, const L: usize> PreisachTable<N, L> {
     }
 }
 
+impl<const N: usize, const L: usize> PreisachTable<N, L> {
+    /// [`Self::at_load`] for the Everett rows `rows` only, into `out` (and
+    /// the bias and linear term with row 0): a load switch spread over
+    /// several calls.
+    pub(super) fn blend_rows_into(
+        &self,
+        load_n: f32,
+        rows: core::ops::Range<usize>,
+        out: &mut PreisachCoeffs<N>,
+    ) {
+        let (k, t) = grid_position(load_n, self.min_load_n, self.load_step_n, L);
+        let (Some(a), Some(b)) = (self.grid.get(k), self.grid.get(k + 1).or(self.grid.get(k)))
+        else {
+            return;
+        };
+        if rows.start == 0 {
+            out.bias = lerp(a.bias, b.bias, t);
+            out.linear = lerp(a.linear, b.linear, t);
+        }
+        let (skip, take) = (rows.start, rows.len());
+        let pairs = a.everett.iter().zip(b.everett.iter()).skip(skip).take(take);
+        for ((ra, rb), ro) in pairs.zip(out.everett.iter_mut().skip(skip)) {
+            for ((&ea, &eb), eo) in ra.iter().zip(rb.iter()).zip(ro.iter_mut()) {
+                *eo = lerp(ea, eb, t);
+            }
+        }
+    }
+}
+
 /// Position of `load_n` on a grid of `l` loads: the lower grid index and the
 /// fraction towards the next one; clamped to the grid, NaN → the first load.
 pub(super) fn grid_position(

@@ -136,6 +136,50 @@ fn a_load_switch_interpolates_and_small_changes_do_not() {
 }
 
 #[test]
+fn a_load_switch_is_made_a_few_rows_an_update_then_used_whole() {
+    // Eight rows, two loads with different weights: the switch takes four
+    // updates, the old coefficients are used until it is complete, then
+    // the new ones exactly as made at once.
+    let c = |s: f32| {
+        let w: [[f32; N]; N] =
+            core::array::from_fn(|i| core::array::from_fn(|j| s * (1 + i + j) as f32));
+        PreisachCoeffs::from_weights(0.01 * s, 0.1 * s, &w)
+    };
+    let t = PreisachTable::<N, 2> {
+        lo_mpa: 0.01,
+        step_mpa: 0.06,
+        max_pressure_mpa: 0.5,
+        min_load_n: 100.0,
+        load_step_n: 100.0,
+        grid: [c(0.001), c(0.002)],
+    };
+    let mut spread = Preisach::new(&t, 100.0, 0.0);
+    let mut at_once = spread.switch_loads_at_once();
+    let before = spread.step(&t, 0.3, 100.0);
+    at_once.step(&t, 0.3, 100.0);
+    let updates = N / LOAD_SWITCH_ROWS_PER_UPDATE;
+    for k in 0..updates {
+        let x = spread.step(&t, 0.3, 170.0);
+        let y = at_once.step(&t, 0.3, 170.0);
+        if k + 1 < updates {
+            assert!(spread.switching() && spread.load_n() == 100.0, "{k}");
+            assert_eq!(x, before, "{k}: the old load's coefficients, whole");
+        } else {
+            assert!(!spread.switching() && spread.load_n() == 170.0);
+            assert_eq!(x, y, "the new load's, as made at once");
+        }
+    }
+    for k in 0..50 {
+        let p = 0.01 * k as f32;
+        assert_eq!(spread.step(&t, p, 170.0), at_once.step(&t, p, 170.0), "{p}");
+    }
+    // A load that moves on before a switch is complete restarts it there.
+    spread.step(&t, 0.3, 100.0);
+    spread.step(&t, 0.3, 130.0);
+    assert!(spread.switching() && spread.load_n() == 170.0);
+}
+
+#[test]
 fn grid_position_is_clamped() {
     assert_eq!(grid_position(50.0, 100.0, 100.0, 6), (0, 0.0));
     assert_eq!(grid_position(600.0, 100.0, 100.0, 6), (4, 1.0));

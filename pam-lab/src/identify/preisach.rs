@@ -115,7 +115,8 @@ pub fn identify(samples: &[Sample], heldout: &[bool], grid: &Grid) -> Result<Tab
     let mut ata = vec![DMatrix::<f64>::zeros(m, m); LOADS];
     let mut aty = vec![DVector::<f64>::zeros(m); LOADS];
     let mut trained = [false; LOADS];
-    let mut model = Preisach::new(&table, first.load_n as f32, first.pressure_mpa as f32);
+    let mut model = Preisach::new(&table, first.load_n as f32, first.pressure_mpa as f32)
+        .switch_loads_at_once();
     let mut row = vec![0.0; m];
     for (s, &h) in samples.iter().zip(heldout) {
         model.update_load(&table, s.load_n as f32);
@@ -224,12 +225,14 @@ fn fill_untrained(grid: &mut [PreisachCoeffs<ROWS>; LOADS], trained: &[bool; LOA
 }
 
 /// The table's contraction at every sample, driven by the measured
-/// pressure and load from the first sample on.
+/// pressure and load from the first sample on (a load switch made at once,
+/// as an offline evaluation makes it: `Preisach::switch_loads_at_once`).
 pub fn predict(table: &Table, samples: &[Sample]) -> Vec<f64> {
     let Some(first) = samples.first() else {
         return Vec::new();
     };
-    let mut model = Preisach::new(table, first.load_n as f32, first.pressure_mpa as f32);
+    let mut model =
+        Preisach::new(table, first.load_n as f32, first.pressure_mpa as f32).switch_loads_at_once();
     samples
         .iter()
         .map(|s| f64::from(model.step(table, s.pressure_mpa as f32, s.load_n as f32)))
@@ -243,7 +246,7 @@ mod tests {
     /// A minor-loop record at two loads from a known Preisach table.
     fn record_of(table: &Table) -> Vec<Sample> {
         let mut out = Vec::new();
-        let mut model = Preisach::new(table, 100.0, 0.0);
+        let mut model = Preisach::new(table, 100.0, 0.0).switch_loads_at_once();
         let mut t = 0.0;
         for load in [100.0f32, 200.0] {
             for (a, b) in [

@@ -75,7 +75,7 @@ pub(crate) fn preisach_errors(
     heldout: &[bool],
 ) -> Errors {
     let (l0, p0) = start(samples);
-    let mut m = Preisach::new(table, l0, p0);
+    let mut m = Preisach::new(table, l0, p0).switch_loads_at_once();
     baseline_errors(samples, heldout, |p, l| m.step(table, p, l))
 }
 
