@@ -12,7 +12,7 @@
 set -u
 secs="${1:-120}"
 cd "$(dirname "$0")"
-targets=(csv_reader model_file blob_decode core_eval tracker effects inverse fit_record diagnose_record)
+targets=(csv_reader model_file blob_decode core_eval tracker effects inverse preisach fit_record diagnose_record)
 if [ $# -gt 1 ]; then targets=("${@:2}"); fi
 logs="target/run-all-logs"
 mkdir -p "$logs"

@@ -4,6 +4,11 @@
 
 use crate::error::Error;
 
+/// Largest magnitude of the bias and of an Everett entry (contraction).
+pub const MAX_CONTRACTION: f32 = 10.0;
+/// Largest magnitude of the linear term (contraction per MPa).
+pub const MAX_LINEAR_PER_MPA: f32 = 100.0;
+
 /// Coefficients of a Preisach model at one load.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -112,7 +117,8 @@ pub struct PreisachTable<const N: usize, const L: usize> {
 }
 
 impl<const N: usize, const L: usize> PreisachTable<N, L> {
-    /// Finite everywhere; `Δ > 0`, `lo ≥ 0` and the top threshold
+    /// Finite everywhere, the coefficients within [`MAX_CONTRACTION`] and
+    /// [`MAX_LINEAR_PER_MPA`]; `Δ > 0`, `lo ≥ 0` and the top threshold
     /// `lo + N·Δ` at most `max_pressure_mpa`; a positive load step; at
     /// least one relay row and one load.
     pub fn validate(&self) -> Result<(), Error> {
@@ -141,6 +147,23 @@ impl<const N: usize, const L: usize> PreisachTable<N, L> {
         });
         if !finite_coeffs {
             return Err(Error::NonFinite("preisach.grid"));
+        }
+        // A contraction model's magnitudes (a fraction of rest length; per
+        // MPa for the linear term): far beyond any muscle, and bounded so
+        // that every sum the model forms is finite.
+        let bounded = self.grid.iter().all(|c| {
+            c.bias.abs() <= MAX_CONTRACTION
+                && c.linear.abs() <= MAX_LINEAR_PER_MPA
+                && c.everett
+                    .iter()
+                    .flatten()
+                    .all(|e| e.abs() <= MAX_CONTRACTION)
+        });
+        if !bounded {
+            return Err(Error::OutOfRange(
+                "preisach.grid",
+                "bias and Everett entries must be within ±10, the linear term within ±100 per MPa",
+            ));
         }
         if !(self.step_mpa > 0.0) {
             return Err(Error::OutOfRange("preisach.step_mpa", "must be > 0"));

@@ -209,6 +209,12 @@ fn validation_refuses_what_the_model_cannot_run() {
     let mut t = good;
     t.grid[0].everett[3][2] = f32::INFINITY;
     assert!(t.validate().is_err());
+    let mut t = good;
+    t.grid[0].everett[3][2] = 1e30;
+    assert!(t.validate().is_err());
+    let mut t = good;
+    t.grid[0].linear = -1e3;
+    assert!(t.validate().is_err());
 }
 
 #[test]
