@@ -151,7 +151,7 @@ enum Command {
     /// writes and the Preisach model, each identified on the training
     /// cycles and scored on the held-out ones, beside their instructions
     /// on the chip (bench-m4's counts); says which pam would flash and why.
-    /// Writes compare.json into the output directory.
+    /// Writes compare.json and compare.png into the output directory.
     Compare {
         /// Isotonic measurement CSV (`t_s,load_n,pressure_mpa,contraction`).
         data: PathBuf,
@@ -161,6 +161,9 @@ enum Command {
         /// Held-out part: `every:K` (every K-th cycle) or `tail:F` (last fraction F).
         #[arg(long, default_value = "every:4")]
         holdout: Holdout,
+        /// Do not draw compare.png.
+        #[arg(long)]
+        no_plot: bool,
         #[command(flatten)]
         common: Common,
     },
@@ -297,8 +300,9 @@ fn main() -> ExitCode {
             data,
             out,
             holdout,
+            no_plot,
             common,
-        } => run_compare(&data, &out, holdout, common),
+        } => run_compare(&data, &out, holdout, !no_plot, common),
         Command::Simulate {
             model,
             data,
@@ -569,11 +573,20 @@ fn run_fit(
     Ok(())
 }
 
-fn run_compare(data: &Path, out: &Path, holdout: Holdout, common: Common) -> Result<()> {
+fn run_compare(
+    data: &Path,
+    out: &Path,
+    holdout: Holdout,
+    draw: bool,
+    common: Common,
+) -> Result<()> {
     let mut set = OutputSet::new();
     set.protect(data);
     set.into_dir(out)?;
-    set.check_in_dir(out, &["compare.json"])?;
+    set.check_in_dir(
+        out,
+        &["compare.json", "compare.png"][..if draw { 2 } else { 1 }],
+    )?;
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
     let record = commands::read_record(data, Purpose::Fit)?;
@@ -586,6 +599,13 @@ fn run_compare(data: &Path, out: &Path, holdout: Holdout, common: Common) -> Res
         .map_err(|e| anyhow::anyhow!("{}: {e}", data.display()))?;
     let json = serde_json::to_vec_pretty(&comparison)?;
     set.add_bytes(&out.join("compare.json"), &json)?;
+    if draw {
+        rep.stage("plotting");
+        let source = data.display().to_string();
+        set.add_via_path(&out.join("compare.png"), |p| {
+            pam_lab::report::compare_plot::compare_plot(p, &source, &comparison)
+        })?;
+    }
     let written = set.commit()?;
     rep.done();
     if !common.quiet {

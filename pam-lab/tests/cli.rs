@@ -193,6 +193,7 @@ fn compare_puts_fit_and_the_preisach_model_side_by_side_and_refuses_isometric() 
     ]);
     assert!(ok, "{stdout}\n{stderr}");
     assert!(stdout.contains("pam would flash: fit's model"), "{stdout}");
+    assert!(std::fs::metadata(out.join("compare.png")).unwrap().len() > 1000);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
     let entries = json["entries"].as_array().unwrap();
