@@ -33,29 +33,11 @@
 pub mod identified;
 
 use pam_core::clamp;
+use pam_core::preisach::grid_position;
 
 /// A measured load this far from the active load (N) switches the active
 /// load and re-interpolates the coefficients (pam-core's tracker threshold).
 pub const LOAD_THRESHOLD_N: f32 = 20.0;
-
-/// Position of `load_n` on a grid of `l` loads: the lower grid index and the
-/// fraction towards the next one; clamped to the grid, NaN → the first load.
-fn grid_position(load_n: f32, min_load_n: f32, load_step_n: f32, l: usize) -> (usize, f32) {
-    let last = l.saturating_sub(1) as f32;
-    let t = (load_n - min_load_n) / load_step_n;
-    let t = if t >= 0.0 {
-        if t <= last {
-            t
-        } else {
-            last
-        }
-    } else {
-        0.0
-    };
-    let k = t as usize; // t in [0, last]: truncation is floor
-    let k = if k + 1 >= l { l.saturating_sub(2) } else { k };
-    (k, t - k as f32)
-}
 
 fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + (b - a) * t
@@ -447,17 +429,6 @@ mod tests {
         assert!((x - 0.03).abs() < 1e-6);
         let x = m.step(&t, f32::NAN, f32::NAN);
         assert!((x - 0.03).abs() < 1e-6 && m.load_n() == 900.0);
-    }
-
-    #[test]
-    fn grid_position_is_clamped() {
-        assert_eq!(grid_position(50.0, 100.0, 100.0, 6), (0, 0.0));
-        assert_eq!(grid_position(600.0, 100.0, 100.0, 6), (4, 1.0));
-        assert_eq!(grid_position(f32::NAN, 100.0, 100.0, 6), (0, 0.0));
-        let (k, t) = grid_position(250.0, 100.0, 100.0, 6);
-        assert_eq!(k, 1);
-        assert!((t - 0.5).abs() < 1e-6);
-        assert_eq!(grid_position(100.0, 100.0, 100.0, 1), (0, 0.0));
     }
 
     #[test]

@@ -49,7 +49,9 @@ mod relays;
 mod table;
 
 pub use relays::Preisach;
-pub use table::{PreisachCoeffs, PreisachTable, MAX_CONTRACTION, MAX_LINEAR_PER_MPA};
+pub use table::{
+    grid_position, PreisachCoeffs, PreisachTable, MAX_CONTRACTION, MAX_LINEAR_PER_MPA,
+};
 
 /// A measured load this far from the active load (N) switches the active
 /// load and re-interpolates the coefficients: the paper model's tracker

@@ -235,14 +235,11 @@ impl<const N: usize, const L: usize> PreisachTable<N, L> {
     }
 }
 
-/// Position of `load_n` on a grid of `l` loads: the lower grid index and the
-/// fraction towards the next one; clamped to the grid, NaN → the first load.
-pub(super) fn grid_position(
-    load_n: f32,
-    min_load_n: f32,
-    load_step_n: f32,
-    l: usize,
-) -> (usize, f32) {
+/// Position of `load_n` on a grid of `l` loads from `min_load_n` in steps
+/// of `load_step_n`: the lower grid index and the fraction towards the next
+/// one; clamped to the grid, NaN → the first load. (The Preisach table's,
+/// and bench-m4's baselines' grids.)
+pub fn grid_position(load_n: f32, min_load_n: f32, load_step_n: f32, l: usize) -> (usize, f32) {
     let last = l.saturating_sub(1) as f32;
     let t = (load_n - min_load_n) / load_step_n;
     let t = if t >= 0.0 {

@@ -1,4 +1,3 @@
-use super::table::grid_position;
 use super::*;
 
 /// Relay-by-relay reference Preisach.

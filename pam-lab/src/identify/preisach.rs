@@ -6,9 +6,9 @@
 //! coefficients, interpolated. The one identification of the family:
 //! `pam-lab compare` runs it on a user's record and bench-m4 on its rig.
 
-use nalgebra::{DMatrix, DVector};
 use pam_core::preisach::{Preisach, PreisachCoeffs, PreisachTable};
 
+use super::lsq::linear::NormalEquations;
 use crate::record::Sample;
 
 /// Relay rows of the half-grid (`ROWS·(ROWS + 1)/2` = 136 relays).
@@ -112,8 +112,7 @@ pub fn identify(samples: &[Sample], heldout: &[bool], grid: &Grid) -> Result<Tab
         .map_err(|e| format!("the Preisach grid is refused: {e}"))?;
     let relays = ROWS * (ROWS + 1) / 2;
     let m = relays + 2;
-    let mut ata = vec![DMatrix::<f64>::zeros(m, m); LOADS];
-    let mut aty = vec![DVector::<f64>::zeros(m); LOADS];
+    let mut normal = vec![NormalEquations::new(m); LOADS];
     let mut trained = [false; LOADS];
     let mut model = Preisach::new(&table, first.load_n as f32, first.pressure_mpa as f32)
         .switch_loads_at_once();
@@ -134,24 +133,13 @@ pub fn identify(samples: &[Sample], heldout: &[bool], grid: &Grid) -> Result<Tab
                 c += 1;
             }
         }
-        let g = grid.index(model.load_n());
-        let (a, y) = (&mut ata[g], &mut aty[g]);
-        for i in 0..m {
-            let ri = row[i];
-            if ri == 0.0 {
-                continue;
-            }
-            for j in i..m {
-                a[(i, j)] += ri * row[j];
-            }
-            y[i] += ri * s.contraction;
-        }
+        normal[grid.index(model.load_n())].add(&row, s.contraction);
     }
     if !trained.iter().any(|t| *t) {
         return Err("no training sample: every sample is held out".into());
     }
-    for g in 0..LOADS {
-        let x = solve(&ata[g], &aty[g])?;
+    for (coeffs, normal) in table.grid.iter_mut().zip(&normal) {
+        let x = normal.solve(RIDGE)?;
         let mut w = [[0.0f32; ROWS]; ROWS];
         let mut c = 2;
         for (i, wr) in w.iter_mut().enumerate() {
@@ -160,67 +148,51 @@ pub fn identify(samples: &[Sample], heldout: &[bool], grid: &Grid) -> Result<Tab
                 c += 1;
             }
         }
-        table.grid[g] = PreisachCoeffs::from_weights(x[0] as f32, x[1] as f32, &w);
+        *coeffs = PreisachCoeffs::from_weights(x[0] as f32, x[1] as f32, &w);
     }
-    fill_untrained(&mut table.grid, &trained);
+    fill_untrained(&mut table.grid, &trained, mix_coeffs);
     table
         .validate()
         .map_err(|e| format!("pam-core refuses the identified Preisach table: {e}"))?;
     Ok(table)
 }
 
-/// Least squares from the upper triangle of `AᵀA` with [`RIDGE`] on every
-/// column but the bias: Cholesky, or an SVD where that fails.
-fn solve(ata: &DMatrix<f64>, aty: &DVector<f64>) -> Result<Vec<f64>, String> {
-    let mut a = ata.clone();
-    let m = a.nrows();
-    for i in 0..m {
-        for j in 0..i {
-            a[(i, j)] = a[(j, i)];
-        }
-    }
-    let mean_diag = (0..m).map(|i| a[(i, i)]).sum::<f64>() / m as f64;
-    for i in 1..m {
-        a[(i, i)] += RIDGE * mean_diag;
-    }
-    let x = match a.clone().cholesky() {
-        Some(c) => c.solve(aty),
-        None => a
-            .svd(true, true)
-            .solve(aty, 1e-12)
-            .map_err(|e| format!("least squares failed: {e}"))?,
-    };
-    Ok(x.iter().copied().collect())
-}
-
 /// Every grid load without training samples takes the coefficients
-/// interpolated linearly from the nearest trained grid loads on each side
-/// (the nearest one's where only one side has one): what the table's own
-/// `at_load` does between its grid loads, over the wider gap.
-fn fill_untrained(grid: &mut [PreisachCoeffs<ROWS>; LOADS], trained: &[bool; LOADS]) {
-    let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
-    for g in 0..LOADS {
+/// interpolated linearly (`mix(a, b, t)`) from the nearest trained grid
+/// loads on each side (the nearest one's where only one side has one):
+/// what a table's own `at_load` does between its grid loads, over the
+/// wider gap. The models are linear in their coefficients, so this is their
+/// prediction interpolated across load. (bench-m4's baselines fill their
+/// grids with it too.)
+pub fn fill_untrained<T: Copy, const L: usize>(
+    grid: &mut [T; L],
+    trained: &[bool; L],
+    mix: impl Fn(&T, &T, f32) -> T,
+) {
+    for g in 0..L {
         if trained[g] {
             continue;
         }
         let below = (0..g).rev().find(|&k| trained[k]);
-        let above = (g + 1..LOADS).find(|&k| trained[k]);
+        let above = (g + 1..L).find(|&k| trained[k]);
         grid[g] = match (below, above) {
-            (Some(a), Some(b)) => {
-                let t = (g - a) as f32 / (b - a) as f32;
-                let (ca, cb) = (grid[a], grid[b]);
-                PreisachCoeffs {
-                    bias: lerp(ca.bias, cb.bias, t),
-                    linear: lerp(ca.linear, cb.linear, t),
-                    everett: core::array::from_fn(|i| {
-                        core::array::from_fn(|k| lerp(ca.everett[i][k], cb.everett[i][k], t))
-                    }),
-                }
-            }
+            (Some(a), Some(b)) => mix(&grid[a], &grid[b], (g - a) as f32 / (b - a) as f32),
             (Some(a), None) => grid[a],
             (None, Some(b)) => grid[b],
             (None, None) => grid[g],
         };
+    }
+}
+
+/// [`fill_untrained`] for the Preisach table's coefficients.
+fn mix_coeffs(a: &PreisachCoeffs<ROWS>, b: &PreisachCoeffs<ROWS>, t: f32) -> PreisachCoeffs<ROWS> {
+    let lerp = |a: f32, b: f32| a + t * (b - a);
+    PreisachCoeffs {
+        bias: lerp(a.bias, b.bias),
+        linear: lerp(a.linear, b.linear),
+        everett: core::array::from_fn(|i| {
+            core::array::from_fn(|k| lerp(a.everett[i][k], b.everett[i][k]))
+        }),
     }
 }
 

@@ -2,66 +2,31 @@
 //! a grid load without training samples filled from its neighbours.
 
 use super::*;
+use pam_lab::identify::lsq::linear::NormalEquations;
 
 pub(crate) fn grid_index(load_n: f32) -> usize {
     let k = ((load_n - MIN_LOAD_N) / LOAD_STEP_N).round();
     k.clamp(0.0, (L - 1) as f32) as usize
 }
 
-/// Normal equations per grid load.
-pub(crate) struct Normal {
-    ata: Vec<DMatrix<f64>>,
-    aty: Vec<DVector<f64>>,
-    rows: Vec<usize>,
-}
+/// Normal equations per grid load (pam-lab's, with its ridge solve).
+pub(crate) struct Normal(Vec<NormalEquations>);
 
 impl Normal {
     fn new(m: usize) -> Normal {
-        Normal {
-            ata: vec![DMatrix::zeros(m, m); L],
-            aty: vec![DVector::zeros(m); L],
-            rows: vec![0; L],
-        }
+        Normal(vec![NormalEquations::new(m); L])
     }
 
     fn add(&mut self, g: usize, row: &[f64], y: f64) {
-        let ata = &mut self.ata[g];
-        let m = row.len();
-        for i in 0..m {
-            let ri = row[i];
-            if ri == 0.0 {
-                continue;
-            }
-            for j in i..m {
-                ata[(i, j)] += ri * row[j];
-            }
-            self.aty[g][i] += ri * y;
-        }
-        self.rows[g] += 1;
+        self.0[g].add(row, y);
     }
 
     /// Least squares with a ridge `RIDGE·mean(diag)` on every column but the bias.
     fn solve(&self, g: usize) -> Vec<f64> {
-        let mut a = self.ata[g].clone();
-        let m = a.nrows();
-        for i in 0..m {
-            for j in 0..i {
-                a[(i, j)] = a[(j, i)];
-            }
+        match self.0[g].solve(RIDGE) {
+            Ok(x) => x,
+            Err(e) => panic!("grid load {g}: {e}"),
         }
-        let mean_diag = (0..m).map(|i| a[(i, i)]).sum::<f64>() / m as f64;
-        for i in 1..m {
-            a[(i, i)] += RIDGE * mean_diag;
-        }
-        let b = self.aty[g].clone();
-        let x = match a.clone().cholesky() {
-            Some(c) => c.solve(&b),
-            None => a
-                .svd(true, true)
-                .solve(&b, 1e-12)
-                .expect("SVD least squares"),
-        };
-        x.iter().copied().collect()
     }
 }
 
@@ -188,31 +153,7 @@ pub(crate) fn trained_grid(samples: &[Sample], heldout: &[bool]) -> [bool; L] {
     trained
 }
 
-/// Every grid load without training samples takes the coefficients
-/// interpolated linearly from the nearest trained grid loads on each side
-/// (the nearest one's where only one side has one): what the table's own
-/// `at_load` does between its grid loads, over the wider gap. The models
-/// are linear in their coefficients, so this is their prediction
-/// interpolated across load.
-pub(crate) fn fill_untrained<T: Copy>(
-    grid: &mut [T; L],
-    trained: &[bool; L],
-    mix: impl Fn(&T, &T, f32) -> T,
-) {
-    for g in 0..L {
-        if trained[g] {
-            continue;
-        }
-        let below = (0..g).rev().find(|&k| trained[k]);
-        let above = (g + 1..L).find(|&k| trained[k]);
-        grid[g] = match (below, above) {
-            (Some(a), Some(b)) => mix(&grid[a], &grid[b], (g - a) as f32 / (b - a) as f32),
-            (Some(a), None) => grid[a],
-            (None, Some(b)) => grid[b],
-            (None, None) => grid[g],
-        };
-    }
-}
+pub(crate) use pam_lab::identify::preisach::fill_untrained;
 
 pub(crate) fn lerp_arr<const K: usize>(a: &[f32; K], b: &[f32; K], t: f32) -> [f32; K] {
     core::array::from_fn(|i| a[i] + t * (b[i] - a[i]))

@@ -49,7 +49,6 @@ use host_sim::characterisation::{
 use host_sim::plant::MuscleParams;
 use host_sim::pneumatics::PneumaticParams;
 use host_sim::Rig;
-use nalgebra::{DMatrix, DVector};
 use pam_core::effects::{ConstraintShape, Effects, NonLocalMemory};
 use pam_core::Simulator;
 use pam_core::{Coeffs, Params, TrackerConfig};

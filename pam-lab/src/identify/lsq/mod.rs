@@ -7,7 +7,8 @@
 //! runs on have at least two cores), each column evaluated on the rows its
 //! parameter moves where the problem says which ([`Blocks`]: the stroke
 //! table's loads). [`minimize_normal`] takes its steps from the normal
-//! equations instead, for the tall blocked problem of the stroke table.
+//! equations instead, for the tall blocked problem of the stroke table;
+//! [`linear`] solves the models linear in their coefficients.
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
@@ -15,6 +16,7 @@ use std::cell::{Cell, RefCell};
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+pub mod linear;
 mod normal_equations;
 pub use normal_equations::minimize_normal;
 
