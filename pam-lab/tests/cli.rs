@@ -183,7 +183,7 @@ fn simulate_refuses_a_corrupt_blob_and_keeps_the_old_output() {
 fn compare_puts_fit_and_the_preisach_model_side_by_side_and_refuses_isometric() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("rig.csv");
-    write_record(&data, &[100.0, 300.0]);
+    write_record(&data, &[100.0, 200.0, 300.0]);
     let out = dir.path().join("cmp");
     let (ok, stdout, stderr) = pam_lab(&[
         "compare",
@@ -201,10 +201,20 @@ fn compare_puts_fit_and_the_preisach_model_side_by_side_and_refuses_isometric() 
     assert_eq!(entries[0]["flashable"], true);
     assert_eq!(entries[1]["flashable"], false);
     assert_eq!(json["chosen"], 0);
+    // Trained again without the middle load, scored there.
+    let left_out = json["heldout_loads_n"].as_array().unwrap();
+    assert_eq!(left_out.len(), 1);
+    assert!(
+        (left_out[0].as_f64().unwrap() - 200.0).abs() < 5.0,
+        "{left_out:?}"
+    );
     for e in entries {
-        let rms = e["heldout_rms"].as_f64().unwrap();
-        // The record's noise is 0.0008: both models are within a few of it.
-        assert!(rms > 0.0 && rms < 0.01, "{e}");
+        // The record's noise is 0.0008: both models are within a few of it,
+        // on held-out cycles and at the load left out.
+        for key in ["heldout_rms", "heldout_loads_rms"] {
+            let rms = e[key].as_f64().unwrap();
+            assert!(rms > 0.0 && rms < 0.01, "{key}: {e}");
+        }
         assert!(e["instructions_mean"].as_f64().unwrap() > 0.0, "{e}");
     }
     // An isometric record: refused with the reason, nothing written.

@@ -8,7 +8,7 @@ use pam_core::effects::memory::MEMORY_DEPTH;
 use pam_core::{Effects, Simulator, TrackerConfig};
 use serde::Serialize;
 
-use crate::identify::fit::{self, FitConfig, FitReport, TestKind};
+use crate::identify::fit::{self, FitConfig, FitReport, Holdout, TestKind};
 use crate::identify::preisach;
 use crate::record::{Record, Sample};
 
@@ -29,6 +29,9 @@ pub struct Entry {
     pub heldout_rms: f64,
     /// Training RMS contraction error.
     pub training_rms: f64,
+    /// Held-out RMS at the loads left out of a second training (`None`
+    /// when the record has too few loads to leave one out).
+    pub heldout_loads_rms: Option<f64>,
     /// bench-m4's call measured for its per-sample forward step.
     pub bench_call: &'static str,
     /// Instructions of that call on the Cortex-M4F: mean and worst.
@@ -47,6 +50,10 @@ pub struct Comparison {
     pub training_samples: usize,
     /// Held-out samples.
     pub heldout_samples: usize,
+    /// The loads left out of the second training, N (the interior loads
+    /// at every other place, as bench-m4 leaves out 300 and 500 N of
+    /// 100–600 N); empty when the record has fewer than three loads.
+    pub heldout_loads_n: Vec<f64>,
     /// The models, fit's first.
     pub entries: Vec<Entry>,
     /// Index into `entries` of the model pam would flash.
@@ -98,6 +105,96 @@ fn fit_predictions(rep: &FitReport, samples: &[Sample]) -> Result<Vec<f64>, Stri
         .collect())
 }
 
+/// Loads closer than this (N) are one load of the record (its noise and
+/// drift; a characterisation steps its loads by tens of newtons at least).
+const LOAD_LEVEL_GAP_N: f64 = 10.0;
+
+/// The record's loads (the means of its load levels, sorted) and each
+/// sample's level.
+fn load_levels(samples: &[Sample]) -> (Vec<f64>, Vec<Option<usize>>) {
+    let mut sorted: Vec<f64> = samples
+        .iter()
+        .map(|s| s.load_n)
+        .filter(|l| l.is_finite())
+        .collect();
+    sorted.sort_by(f64::total_cmp);
+    let mut groups: Vec<(f64, usize)> = Vec::new();
+    let mut last = f64::NEG_INFINITY;
+    for l in sorted {
+        match groups.last_mut() {
+            Some((sum, n)) if l - last <= LOAD_LEVEL_GAP_N => {
+                *sum += l;
+                *n += 1;
+            }
+            _ => groups.push((l, 1)),
+        }
+        last = l;
+    }
+    let levels: Vec<f64> = groups.iter().map(|(sum, n)| sum / *n as f64).collect();
+    let level_of = samples
+        .iter()
+        .map(|s| {
+            levels
+                .iter()
+                .enumerate()
+                .min_by(|a, b| (a.1 - s.load_n).abs().total_cmp(&(b.1 - s.load_n).abs()))
+                .map(|(i, _)| i)
+                .filter(|_| s.load_n.is_finite())
+        })
+        .collect();
+    (levels, level_of)
+}
+
+/// The loads left out (every other interior load: places 2, 4, … short of
+/// the last, or the middle of three) and the mask of their samples; `None`
+/// with fewer than three loads.
+fn left_out_loads(samples: &[Sample]) -> Option<(Vec<f64>, Vec<bool>)> {
+    let (levels, level_of) = load_levels(samples);
+    let l = levels.len();
+    let out: Vec<usize> = match l {
+        0..=2 => return None,
+        3 => vec![1],
+        _ => (2..l - 1).step_by(2).collect(),
+    };
+    let mask = level_of
+        .iter()
+        .map(|lv| lv.is_some_and(|i| out.contains(&i)))
+        .collect();
+    Some((out.iter().map(|&i| levels[i]).collect(), mask))
+}
+
+/// Fit's model and the Preisach model trained without the samples of
+/// `mask`, their contraction predicted over the whole record.
+fn predictions_without(
+    record: &Record,
+    mask: &[bool],
+    cfg: &FitConfig,
+    grid: &preisach::Grid,
+) -> Result<[Vec<f64>; 2], String> {
+    let samples = &record.samples;
+    let kept: Vec<Sample> = samples
+        .iter()
+        .zip(mask)
+        .filter(|(_, &m)| !m)
+        .map(|(s, _)| *s)
+        .collect();
+    let training = Record::from_samples(
+        format!("{} without its left-out loads", record.source),
+        kept,
+    );
+    let cfg = FitConfig {
+        holdout: Holdout::None,
+        ..cfg.clone()
+    };
+    let rep =
+        fit::fit(&training, &cfg).map_err(|e| format!("fit without the left-out loads: {e}"))?;
+    let table = preisach::identify(samples, mask, grid)?;
+    Ok([
+        fit_predictions(&rep, samples)?,
+        preisach::predict(&table, samples),
+    ])
+}
+
 /// Fit's model and the Preisach model on `record`, split as `cfg.holdout`
 /// says (fit's split: whole pressure cycles held out), and the choice.
 /// Refused for an isometric record (both predict contraction from pressure
@@ -127,6 +224,12 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
         fit_predictions(&rep, samples)?,
         preisach::predict(&table, samples),
     ];
+    // The second comparison: loads the models were not trained at.
+    let left_out = left_out_loads(samples);
+    let without = match &left_out {
+        Some((_, mask)) => Some((mask, predictions_without(record, mask, cfg, &grid)?)),
+        None => None,
+    };
     let bench_calls = ["fit_model_step", "preisach16_step"];
     let names = [
         "fit's model (the paper's, its static shape)".to_string(),
@@ -138,10 +241,11 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
         ),
     ];
     let mut entries = Vec::new();
-    for ((model, predicted), (call, flashable)) in names
+    for (k, ((model, predicted), (call, flashable))) in names
         .into_iter()
         .zip(&predictions)
         .zip(bench_calls.into_iter().zip([true, false]))
+        .enumerate()
     {
         let (mean, max) =
             counts(call).ok_or_else(|| format!("bench-m4/baseline.tsv has no `{call}`"))?;
@@ -149,6 +253,9 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
             model,
             heldout_rms: rms(samples, predicted, |i| heldout[i]),
             training_rms: rms(samples, predicted, |i| !heldout[i]),
+            heldout_loads_rms: without
+                .as_ref()
+                .map(|(mask, p)| rms(samples, &p[k], |i| mask[i])),
             bench_call: call,
             instructions_mean: mean,
             instructions_max: max,
@@ -182,6 +289,7 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
     Ok(Comparison {
         training_samples: heldout.iter().filter(|h| !**h).count(),
         heldout_samples: heldout.iter().filter(|h| **h).count(),
+        heldout_loads_n: left_out.map_or_else(Vec::new, |(l, _)| l),
         entries,
         chosen: 0,
         why,
@@ -194,15 +302,30 @@ pub fn text(c: &Comparison, source: &str) -> String {
         "compare {source}: {} training / {} held-out samples (whole pressure cycles held out)\n",
         c.training_samples, c.heldout_samples
     );
+    if !c.heldout_loads_n.is_empty() {
+        let loads: Vec<String> = c
+            .heldout_loads_n
+            .iter()
+            .map(|l| format!("{l:.0}"))
+            .collect();
+        s += &format!(
+            "  and trained again without the loads {} N, scored there (held-out loads)\n",
+            loads.join(", ")
+        );
+    }
     s += &format!(
-        "  {:<44} {:>12} {:>13}  instructions mean / max (bench-m4 call)  flashable\n",
-        "model", "held-out RMS", "training RMS"
+        "  {:<44} {:>12} {:>14} {:>13}  instructions mean / max (bench-m4 call)  flashable\n",
+        "model", "held-out RMS", "held-out loads", "training RMS"
     );
     for e in &c.entries {
+        let loads = e
+            .heldout_loads_rms
+            .map_or_else(|| "-".to_string(), |v| format!("{v:.5}"));
         s += &format!(
-            "  {:<44} {:>12.5} {:>13.5}  {:>5.0} / {:<5} ({})  {}\n",
+            "  {:<44} {:>12.5} {:>14} {:>13.5}  {:>5.0} / {:<5} ({})  {}\n",
             e.model,
             e.heldout_rms,
+            loads,
             e.training_rms,
             e.instructions_mean,
             e.instructions_max,
@@ -221,6 +344,34 @@ pub fn text(c: &Comparison, source: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn at(load_n: f64) -> Sample {
+        Sample {
+            t_s: 0.0,
+            load_n,
+            pressure_mpa: 0.1,
+            contraction: 0.05,
+        }
+    }
+
+    #[test]
+    fn every_other_interior_load_is_left_out() {
+        let loads = |ls: &[f64]| -> Vec<Sample> {
+            ls.iter()
+                .flat_map(|&l| [at(l - 2.0), at(l), at(l + 3.0)])
+                .collect()
+        };
+        let six = loads(&[100.0, 200.0, 300.0, 400.0, 500.0, 600.0]);
+        let (out, mask) = left_out_loads(&six).unwrap();
+        let rounded: Vec<f64> = out.iter().map(|l| l.round()).collect();
+        assert_eq!(rounded, [300.0, 500.0]);
+        assert_eq!(mask.iter().filter(|m| **m).count(), 6);
+        let (out, _) = left_out_loads(&loads(&[100.0, 250.0, 400.0])).unwrap();
+        assert_eq!(out.len(), 1);
+        assert!((out[0] - 250.0).abs() < 2.0);
+        assert!(left_out_loads(&loads(&[100.0, 300.0])).is_none());
+        assert!(left_out_loads(&[at(f64::NAN)]).is_none());
+    }
 
     #[test]
     fn the_bench_counts_name_both_models() {
