@@ -4,6 +4,11 @@
 //! updates) and inverse calls (arbitrary contractions), each inverse
 //! result applied as a feedforward applies it.
 //!
+//! First the same bytes as a blob (`pam_core::preisach::blob::decode`),
+//! as they come and as the payload of a correct frame (magic, version,
+//! length, sizes, CRC-32): no panic; a blob that decodes re-encodes to the
+//! same bytes and runs.
+//!
 //! Asserts after every call: the relay counts stay in `0..=i + 1`; the
 //! output is finite (at any pressure within 10³ MPa); the inverse's pressure is finite
 //! and in `[0, max_pressure_mpa]`; a finite contraction at or above the
@@ -12,12 +17,39 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use pam_core::blob::crc32;
+use pam_core::preisach::blob::{self, PREISACH_BLOB_MAGIC, PREISACH_BLOB_VERSION};
 use pam_core::preisach::{Preisach, PreisachCoeffs, PreisachTable};
 use pam_fuzz::Floats;
 
 const N: usize = 6;
 
+fn check_blob(data: &[u8]) {
+    const LEN: usize = blob::blob_len(N, 2);
+    let _ = blob::decode::<N, 2>(data);
+    let mut framed = [0u8; LEN];
+    framed[0..4].copy_from_slice(&PREISACH_BLOB_MAGIC);
+    framed[4..6].copy_from_slice(&PREISACH_BLOB_VERSION.to_le_bytes());
+    framed[6..8].copy_from_slice(&(blob::payload_len(N, 2) as u16).to_le_bytes());
+    framed[8..10].copy_from_slice(&(N as u16).to_le_bytes());
+    framed[10..12].copy_from_slice(&2u16.to_le_bytes());
+    let n = data.len().min(LEN - 16);
+    framed[12..12 + n].copy_from_slice(&data[..n]);
+    let crc = crc32(&framed[..LEN - 4]);
+    framed[LEN - 4..].copy_from_slice(&crc.to_le_bytes());
+    if let Ok(t) = blob::decode::<N, 2>(&framed) {
+        let mut again = [0u8; LEN];
+        blob::encode(&t, &mut again).expect("the blob's own length");
+        assert_eq!(again, framed, "re-encoding differs");
+        let mut m = Preisach::new(&t, t.min_load_n, 0.0);
+        assert!(m.step(&t, t.max_pressure_mpa, t.min_load_n).is_finite());
+        let p = m.inverse_pressure_mpa(0.0);
+        assert!((0.0..=t.max_pressure_mpa).contains(&p));
+    }
+}
+
 fuzz_target!(|data: &[u8]| {
+    check_blob(data);
     let mut f = Floats::new(data);
     let mut coeffs = || {
         let w: [[f32; N]; N] =

@@ -151,7 +151,8 @@ enum Command {
     /// writes and the Preisach model, each identified on the training
     /// cycles and scored on the held-out ones, beside their instructions
     /// on the chip (bench-m4's counts); says which pam would flash and why.
-    /// Writes compare.json and compare.png into the output directory.
+    /// Writes compare.json, preisach.blob (the Preisach table identified)
+    /// and compare.png into the output directory.
     Compare {
         /// Isotonic measurement CSV (`t_s,load_n,pressure_mpa,contraction`).
         data: PathBuf,
@@ -585,7 +586,7 @@ fn run_compare(
     set.into_dir(out)?;
     set.check_in_dir(
         out,
-        &["compare.json", "compare.png"][..if draw { 2 } else { 1 }],
+        &["compare.json", "preisach.blob", "compare.png"][..if draw { 3 } else { 2 }],
     )?;
     let rep = Reporter::new(common);
     rep.stage(&format!("reading {}", data.display()));
@@ -599,6 +600,16 @@ fn run_compare(
         .map_err(|e| anyhow::anyhow!("{}: {e}", data.display()))?;
     let json = serde_json::to_vec_pretty(&comparison)?;
     set.add_bytes(&out.join("compare.json"), &json)?;
+    let mut blob = vec![
+        0u8;
+        pam_core::preisach::blob::blob_len(
+            pam_lab::identify::preisach::ROWS,
+            pam_lab::identify::preisach::LOADS
+        )
+    ];
+    pam_core::preisach::blob::encode(&comparison.preisach, &mut blob)
+        .map_err(|e| anyhow::anyhow!("preisach.blob: {e}"))?;
+    set.add_bytes(&out.join("preisach.blob"), &blob)?;
     if draw {
         rep.stage("plotting");
         let source = data.display().to_string();

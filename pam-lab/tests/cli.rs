@@ -194,6 +194,9 @@ fn compare_puts_fit_and_the_preisach_model_side_by_side_and_refuses_isometric() 
     assert!(ok, "{stdout}\n{stderr}");
     assert!(stdout.contains("pam would flash: fit's model"), "{stdout}");
     assert!(std::fs::metadata(out.join("compare.png")).unwrap().len() > 1000);
+    // The Preisach table identified, as pam-core's blob reader accepts it.
+    let blob = std::fs::read(out.join("preisach.blob")).unwrap();
+    assert!(pam_core::preisach::blob::decode::<16, 6>(&blob).is_ok());
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
     let entries = json["entries"].as_array().unwrap();

@@ -42,8 +42,14 @@
 //! ([`Preisach::inverse_pressure_mpa`]): a feedforward's inverse, exact,
 //! in at most `N` steps either way.
 //!
+//! # Blob
+//! [`blob`]: the table framed and checked as the paper model's blob is,
+//! with its own magic (`PAMP`); `pam-lab compare` writes it. The firmware
+//! does not boot it yet.
+//!
 //! No allocation and no panic paths (indexing through iterators and `get`).
 
+pub mod blob;
 mod inverse;
 mod relays;
 mod table;

@@ -58,6 +58,10 @@ pub struct Comparison {
     pub entries: Vec<Entry>,
     /// Index into `entries` of the model pam would flash.
     pub chosen: usize,
+    /// The Preisach table identified on the training cycles (written as
+    /// `preisach.blob`, not into the JSON).
+    #[serde(skip)]
+    pub preisach: preisach::Table,
     /// Why.
     pub why: String,
 }
@@ -292,6 +296,7 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
         heldout_loads_n: left_out.map_or_else(Vec::new, |(l, _)| l),
         entries,
         chosen: 0,
+        preisach: table,
         why,
     })
 }
