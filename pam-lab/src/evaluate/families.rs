@@ -275,7 +275,7 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
              predicts this record's held-out cycles {:.0} % better ({:.5} against {:.5}) at \
              {:.0} instructions a sample against {:.0} (its feedforward's slowest period, a \
              move across the whole range: {far}, {} the controller's budget of {BUDGET}), \
-             but no blob or firmware path carries it yet",
+             but the firmware does not run it yet (its blob is written, no boot path reads it)",
             100.0 * (1.0 - ratio),
             pr.heldout_rms,
             fit_e.heldout_rms,
