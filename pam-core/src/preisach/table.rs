@@ -187,29 +187,17 @@ impl<const N: usize, const L: usize> PreisachTable<N, L> {
     /// Coefficients at `load_n`, interpolated linearly between grid loads
     /// (clamped to the grid; NaN → the first load).
     pub fn at_load(&self, load_n: f32) -> PreisachCoeffs<N> {
-        let (k, t) = grid_position(load_n, self.min_load_n, self.load_step_n, L);
-        let (Some(a), Some(b)) = (self.grid.get(k), self.grid.get(k + 1).or(self.grid.get(k)))
-        else {
-            return PreisachCoeffs::ZERO;
-        };
-        let mut everett = a.everett;
-        for (row, brow) in everett.iter_mut().zip(b.everett.iter()) {
-            for (e, &eb) in row.iter_mut().zip(brow.iter()) {
-                *e = lerp(*e, eb, t);
-            }
-        }
-        PreisachCoeffs {
-            bias: lerp(a.bias, b.bias, t),
-            linear: lerp(a.linear, b.linear, t),
-            everett,
-        }
+        let mut out = PreisachCoeffs::ZERO;
+        self.blend_rows_into(load_n, 0..N, &mut out);
+        out
     }
 }
 
 impl<const N: usize, const L: usize> PreisachTable<N, L> {
     /// [`Self::at_load`] for the Everett rows `rows` only, into `out` (and
     /// the bias and linear term with row 0): a load switch spread over
-    /// several calls.
+    /// several calls, or (all rows) the whole blend. `out` is left as it
+    /// is for a table without loads.
     pub(super) fn blend_rows_into(
         &self,
         load_n: f32,

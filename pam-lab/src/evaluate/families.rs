@@ -4,10 +4,10 @@
 //! costs on the chip (bench-m4's measured counts), and which one pam would
 //! flash and why (`pam-lab compare`).
 
-use pam_core::effects::memory::MEMORY_DEPTH;
-use pam_core::{Effects, Simulator, TrackerConfig};
+use pam_core::{Effects, TrackerConfig};
 use serde::Serialize;
 
+use crate::evaluate::simulate::{run_record, InverseTables};
 use crate::identify::fit::{self, FitConfig, FitReport, Holdout, TestKind};
 use crate::identify::preisach;
 use crate::record::{Record, Sample};
@@ -89,24 +89,27 @@ fn rms(samples: &[Sample], predicted: &[f64], keep: impl Fn(usize) -> bool) -> f
 }
 
 /// fit's model driven by the measured pressure and load, as the chip
-/// would run it forward (pam-core's `Simulator` with fit's static shape).
+/// would run it forward: pam-lab's one record simulator ([`run_record`],
+/// pam-core's `Simulator` with fit's static shape).
 fn fit_predictions(rep: &FitReport, samples: &[Sample]) -> Result<Vec<f64>, String> {
     let effects = Effects {
         shape: rep.constraint_shape,
         ..Effects::NONE
     };
-    let first = samples.first().ok_or("the record has no samples")?;
-    let mut sim = Simulator::<MEMORY_DEPTH>::new(
-        rep.coeffs,
-        effects,
+    let mut out = vec![f64::NAN; samples.len()];
+    let ran = run_record(
+        &rep.coeffs,
+        &effects,
         TrackerConfig::DEFAULT_PRESSURE,
-        first.load_n as f32,
-    )
-    .map_err(|e| format!("pam-core refuses fit's model: {e}"))?;
-    Ok(samples
-        .iter()
-        .map(|s| f64::from(sim.step(s.t_s as f32, s.pressure_mpa as f32, s.load_n as f32)))
-        .collect())
+        samples,
+        None,
+        InverseTables::AtEachSwitch,
+        |i, _, x| out[i] = f64::from(x),
+    );
+    if !ran {
+        return Err("pam-core refuses fit's model".into());
+    }
+    Ok(out)
 }
 
 /// Loads closer than this (N) are one load of the record (its noise and
