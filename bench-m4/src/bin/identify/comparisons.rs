@@ -128,6 +128,9 @@ pub(crate) fn memory_text(m: &NonLocalMemory) -> String {
 /// What fit's static shape is, for a table's "identified" column.
 pub(crate) fn shape_kind(shape: Option<ConstraintShape>) -> &'static str {
     match shape {
+        Some(s) if !s.table.is_neutral() && s.coefficients_f64() != [0.0; 10] => {
+            "8 parameters, a stroke table (66 knots) and its ends' shifts (6)"
+        }
         Some(s) if !s.table.is_neutral() => "8 parameters and a stroke table (66 knots)",
         Some(_) => "8 parameters and a polynomial shape correction",
         None => "8 parameters (fit kept no static shape)",

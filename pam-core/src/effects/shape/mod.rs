@@ -332,6 +332,11 @@ pub struct ShapeInverse {
     /// the stroke table `pam-lab fit` writes): its map is `u` and its
     /// inverse the target, bit for bit, so both are skipped.
     bend_is_identity: bool,
+    /// The polynomial part is linear in `u` (no bulge, no tilt: the ends'
+    /// shifts alone, as `pam-lab fit` writes them beside its stroke table):
+    /// `r + u·(1 + e − r)`, whose inverse is the chord's estimate itself,
+    /// one multiplication, no Newton step.
+    bend_is_linear: bool,
 }
 
 impl ShapeInverse {
@@ -372,6 +377,7 @@ impl ShapeInverse {
                 && t == 0.0
                 && bend.root_shift == 0.0
                 && bend.end_shift == 0.0,
+            bend_is_linear: b == 0.0 && t == 0.0,
         }
     }
 
@@ -422,6 +428,8 @@ impl ShapeInverse {
         };
         let u = if self.bend_is_identity {
             target
+        } else if self.bend_is_linear {
+            clamp((target - lo_end) * self.inv_span, 0.0, 1.0)
         } else {
             self.bend_inverse(target)
         };
@@ -510,6 +518,7 @@ mod tests {
             assert!(fast.bend_is_identity && fast.table.is_some());
             let slow = ShapeInverse {
                 bend_is_identity: false,
+                bend_is_linear: false,
                 ..fast
             };
             let (r, rx) = (m.root_contraction(), m.max_contraction());
@@ -539,6 +548,49 @@ mod tests {
             ..shape
         };
         assert!(!bent.inverse_at_load(&p, p.min_load_n).bend_is_identity);
+    }
+
+    #[test]
+    fn shifted_ends_alone_invert_in_one_step() {
+        // The ends' shifts without bulge or tilt (fit's stroke table with
+        // its ends moved): the polynomial part is linear, its inverse the
+        // chord's estimate. It agrees with the Newton steps it replaces to
+        // a few f32 roundings, and the map of the inverse is the muscle's
+        // contraction back, along the shifted stroke and across loads.
+        let m = model();
+        let p = Params::DEFAULT;
+        let (r, rx) = (m.root_contraction(), m.max_contraction());
+        for (root, end, end_sq) in [
+            (0.0, -0.05, 0.0),
+            (0.04, -0.1, -0.004),
+            (-0.03, 0.08, 0.003),
+        ] {
+            let shape = ConstraintShape {
+                root_shift: root,
+                end_shift: end,
+                end_shift_per_step_sq: end_sq,
+                ..ConstraintShape::NEUTRAL
+            };
+            shape.validate().unwrap();
+            for load in [p.min_load_n, 250.0, p.max_load_n] {
+                let fast = shape.inverse_at_load(&p, load);
+                assert!(fast.bend_is_linear && !fast.bend_is_identity);
+                let newton = ShapeInverse {
+                    bend_is_linear: false,
+                    ..fast
+                };
+                let (lo, hi) = (r + (rx - r) * fast.lo_end, r + (rx - r) * fast.hi_end);
+                for i in 0..=400 {
+                    let x = lo + (hi - lo) * i as f32 / 400.0;
+                    let u = fast.model_contraction(&m, x);
+                    assert!(
+                        (u - newton.model_contraction(&m, x)).abs() < 2e-6,
+                        "{load} {x}"
+                    );
+                    assert!((fast.apply(&m, u) - x).abs() < 2e-6, "{load} {x}");
+                }
+            }
+        }
     }
 
     #[test]

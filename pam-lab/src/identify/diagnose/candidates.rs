@@ -507,10 +507,10 @@ fn verdict(
     }
 }
 
-/// Free knots of a stroke table ([`pam_core::effects::shape::StrokeTable`]):
-/// its interior knots at each of its loads.
-pub const STROKE_TABLE_PARAMETERS: usize = pam_core::effects::shape::table::TABLE_LOADS
-    * (pam_core::effects::shape::table::TABLE_SEGMENTS - 1);
+/// Free parameters of fit's static shape: a stroke table's
+/// ([`pam_core::effects::shape::StrokeTable`]) interior knots at each of
+/// its loads, and its ends' shifts.
+pub const STROKE_TABLE_PARAMETERS: usize = crate::identify::fit::STATIC_SHAPE_PARAMETERS;
 
 pub(super) fn evaluate_candidate(
     setup: &Setup<'_>,

@@ -61,6 +61,10 @@ mod tests;
 
 pub use config::{heldout_mask, FitConfig, FitError, Holdout, Progress};
 pub use report::{validate, FitReport, PmaxSource, ShapeFit, Validation};
+
+/// Free parameters of the static shape fit keeps: its stroke table's
+/// interior knots at each table load and its ends' shifts.
+pub const STATIC_SHAPE_PARAMETERS: usize = static_shape::NV;
 pub use test_kind::{detect_test, slack_mask, TestKind};
 
 use pam_core::{Branch, Coeffs, LoadFamily, Params};

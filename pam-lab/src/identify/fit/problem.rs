@@ -47,10 +47,7 @@ pub(super) struct Problem<'a> {
     pub(super) penalty_weight: f64,
     /// The stroke table's knots per load, when the shape stage found one
     /// (the paper's model refitted under it).
-    pub(super) table: Option<
-        [[f64; pam_core::effects::shape::table::TABLE_KNOTS];
-            pam_core::effects::shape::table::TABLE_LOADS],
-    >,
+    pub(super) table: Option<super::static_shape::StaticShape>,
 }
 
 impl Problem<'_> {
