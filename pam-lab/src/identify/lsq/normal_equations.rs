@@ -27,6 +27,15 @@ use nalgebra::{DMatrix, DVector};
 /// MINPACK's default `ftol` and `xtol`, `√ε`.
 const TOLERANCE: f64 = 1.490_116_119_384_765_6e-8;
 
+/// The first damping, relative to each column's own `JᵀJ` diagonal (the
+/// damping term is `λ·D²`, `D` the columns' norms): Marquardt's `10⁻³`.
+/// A damping in the units of `JᵀJ` (`10⁻³` of its largest diagonal entry,
+/// as this was) holds every column back by the largest one's scale: with
+/// the stroke ends' shifts, whose columns near the stroke's end are 10⁶
+/// times the table's, the first step moved nothing, and the search stopped
+/// there as converged.
+const FIRST_DAMPING: f64 = 1e-3;
+
 /// Largest damping before the step is given up (the cost cannot be lowered
 /// along any direction the Jacobian sees).
 const MAX_DAMPING: f64 = 1e16;
@@ -35,7 +44,7 @@ const MAX_DAMPING: f64 = 1e16;
 /// within `limits`, each step from the normal equations. A trial point
 /// whose residuals are not all finite is a refused step (with
 /// [`super::NonFinite::Refuse`] too). `limits.first_step` is not used: the
-/// first damping is `10⁻³` of the largest diagonal entry of `JᵀJ`.
+/// first damping is [`FIRST_DAMPING`].
 pub fn minimize_normal(
     problem: &Residuals<'_>,
     theta0: &[f64],
@@ -99,8 +108,7 @@ pub fn minimize_normal(
         if g.iter().all(|v| *v == 0.0) {
             return done(theta, cost, TerminationReason::Orthogonal);
         }
-        let largest = (0..n).map(|j| a[(j, j)]).fold(0.0f64, f64::max);
-        let lambda = damping.get_or_insert(1e-3 * largest.max(f64::MIN_POSITIVE));
+        let lambda = damping.get_or_insert(FIRST_DAMPING);
         loop {
             if count.get() >= max_evaluations {
                 return done(theta, cost, TerminationReason::LostPatience);
@@ -108,7 +116,7 @@ pub fn minimize_normal(
             let Some(step) = damped_step(&a, &g, &scale, &held, *lambda) else {
                 *lambda *= growth;
                 growth *= 2.0;
-                if *lambda > MAX_DAMPING * largest.max(1.0) {
+                if *lambda > MAX_DAMPING {
                     return done(
                         theta,
                         cost,
