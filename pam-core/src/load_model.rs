@@ -118,6 +118,37 @@ impl TableBuild {
             iteration: 0,
         }
     }
+
+    /// [`Self::new`] in place, without clearing the hull: the build writes
+    /// every hull knot before it reads one (stage `Hull`), so only the
+    /// cursor needs resetting (a load switch then costs no 33-float clear
+    /// and copy).
+    pub(crate) fn restart(&mut self) {
+        self.stage = Stage::Hull;
+        self.branch = Branch::Contraction;
+        self.running = 0.0;
+        self.j = 0;
+        self.k = 0;
+        self.p = 0.0;
+        self.lo = 0.0;
+        self.hi = 0.0;
+        self.x = 0.0;
+        self.iteration = 0;
+    }
+}
+
+/// A [`LoadModel`]'s coefficients, without its tables.
+#[derive(Clone, Copy, Debug)]
+struct ModelCoefficients {
+    load_n: f32,
+    root: f32,
+    max_contraction: f32,
+    /// `a_i`, `b`, `c_i` of eq. (21).
+    abc: [f32; 3],
+    height_mpa: f32,
+    centre: f32,
+    ellipse_k2: f32,
+    max_pressure_mpa: f32,
 }
 
 /// The load family (eqs. 16–19) in `f32`, for building a [`LoadModel`] at
@@ -162,6 +193,24 @@ impl FamilyF32 {
     /// minimum load) without its inverse tables, eqs. (16)–(21) and (24):
     /// fixed work, four divisions.
     pub(crate) fn model_without_tables(&self, load_n: f32) -> LoadModel {
+        let c = self.coefficients(load_n);
+        LoadModel::from_coefficients(c)
+    }
+
+    /// [`Self::model_without_tables`] written into `model`, whose inverse
+    /// tables are left as they are and marked not ready: a table build
+    /// writes every entry before [`LoadModel::inverse_ready`] is true again
+    /// and reads none, so a load switch does not clear and copy the two
+    /// tables (130 `f32`) the build overwrites.
+    pub(crate) fn set_model_without_tables(&self, model: &mut LoadModel, load_n: f32) {
+        let c = self.coefficients(load_n);
+        model.set_coefficients(c);
+    }
+
+    /// The model's coefficients at `load_n` (clamped to the calibrated
+    /// range).
+    #[inline(always)]
+    fn coefficients(&self, load_n: f32) -> ModelCoefficients {
         let load_n = clamp(load_n, self.min_load_n, self.max_load_n);
         let s = (load_n - self.min_load_n) * self.steps_per_n;
         // eqs. (17), (18), (19)
@@ -174,16 +223,16 @@ impl FamilyF32 {
         // eq. (24): ae_i = (Rx_i − R_i)/2, centre R_i + ae_i (corrected).
         let half_width = 0.5 * (rx - root);
         let k = self.height_mpa / half_width;
-        LoadModel::from_coefficients(
+        ModelCoefficients {
             load_n,
             root,
-            rx,
-            [a, b, c],
-            self.height_mpa,
-            root + half_width,
-            k * k,
-            pmax,
-        )
+            max_contraction: rx,
+            abc: [a, b, c],
+            height_mpa: self.height_mpa,
+            centre: root + half_width,
+            ellipse_k2: k * k,
+            max_pressure_mpa: pmax,
+        }
     }
 
     /// Whether the model this builds at `load_n` has finite coefficients
@@ -261,49 +310,61 @@ impl LoadModel {
     /// `f64` construction rounded once): the host path.
     pub(crate) fn new(at: &LoadCubic) -> LoadModel {
         let ellipse = at.ellipse();
-        let mut model = LoadModel::from_coefficients(
-            at.load_n as f32,
-            at.cubic.root as f32,
-            at.max_contraction as f32,
-            [at.cubic.a as f32, at.cubic.b as f32, at.cubic.c as f32],
-            at.ellipse_height_mpa as f32,
+        let mut model = LoadModel::from_coefficients(ModelCoefficients {
+            load_n: at.load_n as f32,
+            root: at.cubic.root as f32,
+            max_contraction: at.max_contraction as f32,
+            abc: [at.cubic.a as f32, at.cubic.b as f32, at.cubic.c as f32],
+            height_mpa: at.ellipse_height_mpa as f32,
             // eq. (24), centre corrected to R_i + ae_i (see `Ellipse::centre`).
-            ellipse.centre() as f32,
-            ellipse.k2() as f32,
-            at.max_pressure_mpa as f32,
-        );
+            centre: ellipse.centre() as f32,
+            ellipse_k2: ellipse.k2() as f32,
+            max_pressure_mpa: at.max_pressure_mpa as f32,
+        });
         model.build_tables();
         model
     }
 
     /// The model without its inverse tables (all entries `R_i`): the start
     /// of a [`TableBuild`].
-    #[allow(clippy::too_many_arguments)]
-    fn from_coefficients(
-        load_n: f32,
-        root: f32,
-        max_contraction: f32,
-        [a, b, c]: [f32; 3],
-        height_mpa: f32,
-        centre: f32,
-        ellipse_k2: f32,
-        max_pressure_mpa: f32,
-    ) -> LoadModel {
-        LoadModel {
-            load_n,
-            root,
-            max_contraction,
-            a,
-            b,
-            c,
-            height_mpa,
-            centre,
-            ellipse_k2,
-            max_pressure_mpa,
-            intervals_per_mpa: INVERSE_INTERVALS as f32 / max_pressure_mpa,
-            inverse_table: [[root; INVERSE_INTERVALS + 1]; 2],
+    fn from_coefficients(c: ModelCoefficients) -> LoadModel {
+        let mut model = LoadModel {
+            load_n: 0.0,
+            root: c.root,
+            max_contraction: 0.0,
+            a: 0.0,
+            b: 0.0,
+            c: 0.0,
+            height_mpa: 0.0,
+            centre: 0.0,
+            ellipse_k2: 0.0,
+            max_pressure_mpa: 0.0,
+            intervals_per_mpa: 0.0,
+            inverse_table: [[c.root; INVERSE_INTERVALS + 1]; 2],
             tables_ready: false,
-        }
+        };
+        model.set_coefficients(c);
+        model
+    }
+
+    /// The coefficients of `c`, the inverse tables marked not ready (their
+    /// entries left as they are: a [`TableBuild`] overwrites every one
+    /// before they are used).
+    #[inline(always)]
+    fn set_coefficients(&mut self, c: ModelCoefficients) {
+        let [a, b, cc] = c.abc;
+        self.load_n = c.load_n;
+        self.root = c.root;
+        self.max_contraction = c.max_contraction;
+        self.a = a;
+        self.b = b;
+        self.c = cc;
+        self.height_mpa = c.height_mpa;
+        self.centre = c.centre;
+        self.ellipse_k2 = c.ellipse_k2;
+        self.max_pressure_mpa = c.max_pressure_mpa;
+        self.intervals_per_mpa = INVERSE_INTERVALS as f32 / c.max_pressure_mpa;
+        self.tables_ready = false;
     }
 
     /// Both inverse tables at once (construction on the host or at boot).
@@ -798,7 +859,6 @@ mod tests {
         }
     }
 
-    #[test]
     fn the_inverse_without_tables_agrees_with_the_tables() {
         let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
         let family = FamilyF32::new(coeffs.family());
