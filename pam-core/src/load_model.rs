@@ -46,6 +46,33 @@ use crate::branch::Branch;
 use crate::load_family::LoadCubic;
 use crate::math::{clamp, sqrt};
 
+/// The constraint model and the ellipse offset at one contraction, with
+/// their slopes ([`LoadModel::branch_parts`]): the branch with the offset
+/// times `k` is `cubic + k·offset`, its slope `cubic_slope + k·offset_slope`
+/// (evaluated in that order, bit for bit [`LoadModel::branch_and_slope`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct BranchParts {
+    /// `CM(x)`, eq. (21).
+    pub cubic: f32,
+    /// `y_hys(x)`, eq. (24) (0 outside the ellipse).
+    pub offset: f32,
+    /// `CM'(x)`.
+    pub cubic_slope: f32,
+    /// `y_hys'(x)` (0 outside the ellipse).
+    pub offset_slope: f32,
+}
+
+impl BranchParts {
+    /// Branch pressure and slope with the offset times `k`.
+    #[inline(always)]
+    pub(crate) fn at(&self, k: f32) -> (f32, f32) {
+        (
+            self.cubic + k * self.offset,
+            self.cubic_slope + k * self.offset_slope,
+        )
+    }
+}
+
 /// Intervals of the inverse table per branch, uniform in pressure over
 /// `[0, Pmax]`.
 pub const INVERSE_INTERVALS: usize = 64;
@@ -620,6 +647,31 @@ impl LoadModel {
         )
     }
 
+    /// The parts of [`Self::branch_and_slope`] at `x` that do not depend
+    /// on the factor on the offset, the same operations in the same order
+    /// (`BranchParts::at` is it bit for bit; the test
+    /// `branch_parts_are_branch_and_slope_bit_for_bit`): a caller that
+    /// evaluates one contraction at several factors (a remembered reversal
+    /// moved to each period's offset scale) computes them once.
+    pub(crate) fn branch_parts(&self, x: f32) -> BranchParts {
+        let q = (self.a * x - self.b) * x + self.c;
+        let dq = 2.0 * self.a * x - self.b;
+        let w = self.radicand(x);
+        let (y, dy) = if w > 0.0 {
+            let y = sqrt(w);
+            // d/dx √(k²(x − R)(Rx − x)) = k²(h − x)/√(…), h = (R + Rx)/2.
+            (y, self.ellipse_k2 * (self.centre - x) / y)
+        } else {
+            (0.0, 0.0)
+        };
+        BranchParts {
+            cubic: (x - self.root) * q,
+            offset: y,
+            cubic_slope: q + (x - self.root) * dq,
+            offset_slope: dy,
+        }
+    }
+
     /// Whether the inverse tables are complete. A model whose tables a
     /// [`crate::Tracker`] is still building (after a load switch with a
     /// build budget) evaluates forward at full speed, but its
@@ -859,6 +911,24 @@ mod tests {
         }
     }
 
+    #[test]
+    fn branch_parts_are_branch_and_slope_bit_for_bit() {
+        for load in [100.0f32, 350.0, 600.0] {
+            let m = model(load);
+            let (lo, hi) = (m.root_contraction(), m.max_contraction());
+            for i in 0..=200 {
+                let x = lo + (hi - lo) * (i as f32 / 200.0);
+                let parts = m.branch_parts(x);
+                for k in [-4.0f32, -1.3, -1.0, -0.0, 0.0, 0.4, 1.0, 2.2, 4.0] {
+                    let (g, s) = m.branch_and_slope(x, k);
+                    let (pg, ps) = parts.at(k);
+                    assert_eq!((g.to_bits(), s.to_bits()), (pg.to_bits(), ps.to_bits()));
+                }
+            }
+        }
+    }
+
+    #[test]
     fn the_inverse_without_tables_agrees_with_the_tables() {
         let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
         let family = FamilyF32::new(coeffs.family());

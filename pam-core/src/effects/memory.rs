@@ -62,7 +62,7 @@
 
 use crate::branch::Branch;
 use crate::error::Error;
-use crate::load_model::LoadModel;
+use crate::load_model::{BranchParts, LoadModel};
 use crate::math::clamp;
 
 use super::offset::{branch_contraction, MAX_OFFSET_SCALE};
@@ -244,6 +244,9 @@ pub struct ReversalStack<const N: usize> {
     /// The offset scale each point was recorded at (NaN: not known, the
     /// point is never rescaled; see [`ReversalStack::push_at_scale`]).
     scales: [f32; N],
+    /// What moving each point to another offset scale needs that does not
+    /// depend on that scale ([`Moved`]), made the first time it moves.
+    moved: [Moved; N],
     len: usize,
     segment: Option<Segment>,
 }
@@ -253,10 +256,47 @@ impl<const N: usize> Default for ReversalStack<N> {
         ReversalStack {
             points: [Reversal::default(); N],
             scales: [f32::NAN; N],
+            moved: [Moved::NONE; N],
             len: 0,
             segment: None,
         }
     }
+}
+
+/// The part of [`rescaled`] with [`Ends::Newton`] that does not depend on
+/// the offset scale the point moves to: its fraction `φ` of the way between
+/// the branches, and the constraint model and the offset with their slopes
+/// at its contraction, where the Newton step starts. With a rate law the
+/// scale changes every period, and the points of the loop being followed
+/// move every period: from these, one move is a few products and the
+/// step's division instead of two evaluations of the model with their
+/// square roots and divisions (bit for bit the same point).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Moved {
+    /// Bits of the load and `Rx_i` of the model they were computed on, and
+    /// the branch the point was recorded on; `None`: not computed.
+    key: Option<(u32, u32, Branch)>,
+    fraction: f32,
+    /// The point's pressure clamped to `[0, Pmax]` and contraction clamped
+    /// to the stroke (where the Newton step starts).
+    pressure_mpa: f32,
+    contraction: f32,
+    parts: BranchParts,
+}
+
+impl Moved {
+    const NONE: Moved = Moved {
+        key: None,
+        fraction: 0.0,
+        pressure_mpa: 0.0,
+        contraction: 0.0,
+        parts: BranchParts {
+            cubic: 0.0,
+            offset: 0.0,
+            cubic_slope: 0.0,
+            offset_slope: 0.0,
+        },
+    };
 }
 
 impl<const N: usize> ReversalStack<N> {
@@ -293,13 +333,17 @@ impl<const N: usize> ReversalStack<N> {
         if self.len >= N {
             self.points.copy_within(1.., 0);
             self.scales.copy_within(1.., 0);
+            self.moved.copy_within(1.., 0);
             self.len = N - 1;
         }
-        if let (Some(slot), Some(scale)) =
-            (self.points.get_mut(self.len), self.scales.get_mut(self.len))
-        {
+        if let (Some(slot), Some(scale), Some(moved)) = (
+            self.points.get_mut(self.len),
+            self.scales.get_mut(self.len),
+            self.moved.get_mut(self.len),
+        ) {
             *slot = r;
             *scale = offset_scale;
+            moved.key = None;
             self.len += 1;
         }
         self.segment = None;
@@ -312,7 +356,7 @@ impl<const N: usize> ReversalStack<N> {
     /// tell the branches apart.
     #[inline(always)]
     fn point_at_scale(
-        &self,
+        &mut self,
         i: usize,
         model: &LoadModel,
         on: Branch,
@@ -324,7 +368,11 @@ impl<const N: usize> ReversalStack<N> {
         if !recorded.is_finite() || recorded.to_bits() == offset_scale.to_bits() {
             return Some(r);
         }
-        Some(rescaled(r, recorded, model, on, offset_scale, ends))
+        if ends == Ends::Exact {
+            return Some(rescaled(r, recorded, model, on, offset_scale, ends));
+        }
+        let moved = self.moved.get_mut(i)?;
+        Some(moved_newton(moved, r, recorded, model, on, offset_scale))
     }
 
     /// The top point and the one below, as they lie at `offset_scale` for
@@ -334,7 +382,7 @@ impl<const N: usize> ReversalStack<N> {
     /// is: the path without a rate law costs two compares.
     #[inline(always)]
     fn top2_at_scale(
-        &self,
+        &mut self,
         model: &LoadModel,
         branch: Branch,
         offset_scale: f32,
@@ -353,7 +401,7 @@ impl<const N: usize> ReversalStack<N> {
     /// [`Self::top2_at_scale`]'s path where a point moves.
     #[inline(never)]
     fn top2_rescaled(
-        &self,
+        &mut self,
         model: &LoadModel,
         branch: Branch,
         offset_scale: f32,
@@ -376,15 +424,25 @@ impl<const N: usize> ReversalStack<N> {
     /// which the push forgets.
     pub(crate) fn set_pushed(&mut self, other: &Self, r: Reversal, offset_scale: f32) {
         let len = other.len.min(N);
-        for ((to, to_scale), (from, from_scale)) in self
+        for (((to, to_scale), to_moved), (from, from_scale)) in self
             .points
             .iter_mut()
             .zip(self.scales.iter_mut())
+            .zip(self.moved.iter_mut())
             .zip(other.points.iter().zip(&other.scales))
             .take(len)
         {
             *to = *from;
             *to_scale = *from_scale;
+            to_moved.key = None;
+        }
+        // `other`'s top point is the one below `r`, which the new minor
+        // loop moves: its `Moved` comes along (the others are made again
+        // if a wipe-out reaches them).
+        if let Some(top) = len.checked_sub(1) {
+            if let (Some(to), Some(from)) = (self.moved.get_mut(top), other.moved.get(top)) {
+                *to = *from;
+            }
         }
         self.len = len;
         self.push_at_scale(r, offset_scale);
@@ -761,17 +819,7 @@ fn rescaled(
     offset_scale: f32,
     ends: Ends,
 ) -> Reversal {
-    let recorded = clamp(recorded, 0.0, MAX_OFFSET_SCALE);
-    let offset = recorded * model.offset_mpa(r.contraction);
-    let fraction = if offset.abs() > 1e-9 {
-        clamp(
-            (r.pressure_mpa - model.constraint_pressure_mpa(r.contraction)) / offset,
-            -1.0,
-            1.0,
-        )
-    } else {
-        on.offset_sign()
-    };
+    let fraction = fraction_between_branches(r, recorded, model, on);
     let k = fraction * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     let branch = if k >= 0.0 {
         Branch::Contraction
@@ -779,6 +827,77 @@ fn rescaled(
         Branch::Expansion
     };
     let x = ends.solve(model, r.pressure_mpa, branch, k.abs(), Some(r.contraction));
+    Reversal {
+        pressure_mpa: r.pressure_mpa,
+        contraction: if x.is_finite() { x } else { r.contraction },
+    }
+}
+
+/// The fraction `φ = (p − CM(x))/(scale·y_hys(x))` of the way between the
+/// branches at which `r` lies, recorded at offset scale `recorded`, in
+/// `[−1, 1]`; `on`'s sign where the offset is too small to tell
+/// ([`rescaled`]).
+#[inline(always)]
+fn fraction_between_branches(r: Reversal, recorded: f32, model: &LoadModel, on: Branch) -> f32 {
+    let recorded = clamp(recorded, 0.0, MAX_OFFSET_SCALE);
+    let offset = recorded * model.offset_mpa(r.contraction);
+    if offset.abs() > 1e-9 {
+        clamp(
+            (r.pressure_mpa - model.constraint_pressure_mpa(r.contraction)) / offset,
+            -1.0,
+            1.0,
+        )
+    } else {
+        on.offset_sign()
+    }
+}
+
+/// [`rescaled`] with [`Ends::Newton`], bit for bit, from the point's
+/// [`Moved`] (made here when it was not, or was made on another model):
+/// the one Newton step of [`newton_branch`] from the recorded contraction,
+/// with the model's parts there computed once per point instead of once
+/// per move.
+#[inline(never)]
+fn moved_newton(
+    moved: &mut Moved,
+    r: Reversal,
+    recorded: f32,
+    model: &LoadModel,
+    on: Branch,
+    offset_scale: f32,
+) -> Reversal {
+    let (lo, hi) = (model.root_contraction(), model.max_contraction());
+    let key = (
+        model.load_n().to_bits(),
+        model.max_contraction().to_bits(),
+        on,
+    );
+    if moved.key != Some(key) {
+        let x = clamp(r.contraction, lo, hi);
+        *moved = Moved {
+            key: Some(key),
+            fraction: fraction_between_branches(r, recorded, model, on),
+            pressure_mpa: clamp(r.pressure_mpa, 0.0, model.max_pressure_mpa()),
+            contraction: x,
+            parts: model.branch_parts(x),
+        };
+    }
+    let k = moved.fraction * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
+    if k.abs() == 1.0 {
+        // `Ends::solve` inverts a scale of exactly 1 exactly (rare).
+        return rescaled(r, recorded, model, on, offset_scale, Ends::Newton);
+    }
+    // `newton_branch(model, p, branch, |k|, x0, 1)` for the branch of
+    // `k`'s sign, with its evaluation at `x0` from `moved`. Its factor
+    // `sign·clamp(|k|, 0, MAX_OFFSET_SCALE)` is `k` itself (`|φ| <= 1`, the
+    // scale clamped to `[0, MAX_OFFSET_SCALE]`), but +0 for −0.
+    let k = if k == 0.0 { 0.0 } else { k };
+    let (g, slope) = moved.parts.at(k);
+    let x = if slope > 0.0 {
+        clamp(moved.contraction - (g - moved.pressure_mpa) / slope, lo, hi)
+    } else {
+        moved.contraction
+    };
     Reversal {
         pressure_mpa: r.pressure_mpa,
         contraction: if x.is_finite() { x } else { r.contraction },
@@ -825,9 +944,21 @@ impl Segment {
         let inv_progress = if degenerate {
             0.0
         } else if span > 0.0 {
-            (1.0 / span).max(blend.inv_merge)
+            // `f32::max`/`min` without their NaN handling (a library call
+            // on the M4F): `1/span` is not NaN here, `inv_merge` finite.
+            let inv = 1.0 / span;
+            if inv >= blend.inv_merge {
+                inv
+            } else {
+                blend.inv_merge
+            }
         } else {
-            (1.0 / span).min(-blend.inv_merge)
+            let inv = 1.0 / span;
+            if inv <= -blend.inv_merge {
+                inv
+            } else {
+                -blend.inv_merge
+            }
         };
         let wipe_sign = match branch {
             Branch::Contraction => 1.0,
@@ -1036,6 +1167,41 @@ mod tests {
         }
         assert!(worst[0] < 1e-4, "{worst:?}");
         assert!(worst[1] < 2e-3, "{worst:?}");
+    }
+
+    #[test]
+    fn a_moved_point_is_the_rescaled_one_bit_for_bit() {
+        let c = Coeffs::new(Params::DEFAULT).unwrap();
+        for load in [100.0f32, 250.0, 600.0] {
+            let m = c.load_model(load).unwrap();
+            let pmax = m.max_pressure_mpa();
+            for br in [Branch::Contraction, Branch::Expansion] {
+                for i in 0..=40 {
+                    let p = pmax * (i as f32 / 40.0) - 0.01;
+                    for recorded in [0.0f32, 0.5, 1.0, 1.7, 4.0] {
+                        let x_branch = branch_contraction(&m, p, br, recorded.max(0.1));
+                        for dx in [-0.02f32, 0.0, 0.003, 0.05] {
+                            let r = Reversal {
+                                pressure_mpa: p,
+                                contraction: x_branch + dx,
+                            };
+                            let mut moved = Moved::NONE;
+                            for scale in [0.0f32, 0.3, 0.99, 1.0, 1.01, 2.5, 4.0, 7.0] {
+                                for on in [Branch::Contraction, Branch::Expansion] {
+                                    let want = rescaled(r, recorded, &m, on, scale, Ends::Newton);
+                                    let got = moved_newton(&mut moved, r, recorded, &m, on, scale);
+                                    assert_eq!(
+                                        (got.pressure_mpa.to_bits(), got.contraction.to_bits()),
+                                        (want.pressure_mpa.to_bits(), want.contraction.to_bits()),
+                                        "{load} {br:?} {p} {recorded} {dx} {scale} {on:?}"
+                                    );
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 
     fn model() -> LoadModel {
