@@ -273,9 +273,11 @@ impl<const N: usize> Default for ReversalStack<N> {
 /// square roots and divisions (bit for bit the same point).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Moved {
-    /// Bits of the load and `Rx_i` of the model they were computed on, and
-    /// the branch the point was recorded on; `None`: not computed.
-    key: Option<(u32, u32, Branch)>,
+    /// The branch the point was recorded on; `None`: not computed.
+    on: Option<Branch>,
+    /// Bits of the load and `Rx_i` of the model they were computed on.
+    load_bits: u32,
+    max_contraction_bits: u32,
     fraction: f32,
     /// The point's pressure clamped to `[0, Pmax]` and contraction clamped
     /// to the stroke (where the Newton step starts).
@@ -286,7 +288,9 @@ struct Moved {
 
 impl Moved {
     const NONE: Moved = Moved {
-        key: None,
+        on: None,
+        load_bits: 0,
+        max_contraction_bits: 0,
         fraction: 0.0,
         pressure_mpa: 0.0,
         contraction: 0.0,
@@ -343,7 +347,7 @@ impl<const N: usize> ReversalStack<N> {
         ) {
             *slot = r;
             *scale = offset_scale;
-            moved.key = None;
+            moved.on = None;
             self.len += 1;
         }
         self.segment = None;
@@ -434,7 +438,7 @@ impl<const N: usize> ReversalStack<N> {
         {
             *to = *from;
             *to_scale = *from_scale;
-            to_moved.key = None;
+            to_moved.on = None;
         }
         // `other`'s top point is the one below `r`, which the new minor
         // loop moves: its `Moved` comes along (the others are made again
@@ -497,13 +501,15 @@ impl<const N: usize> ReversalStack<N> {
         model: &LoadModel,
         branch: Branch,
         offset_scale: f32,
-    ) -> Option<Segment> {
+    ) -> Option<&Segment> {
         self.segment_with(blend, model, branch, offset_scale, Ends::Exact)
     }
 
     /// [`Self::segment`] with the loop's ends solved as `ends` says; with
     /// [`Ends::Newton`] a cached loop that differs only in the offset scale
-    /// moves its ends by one Newton step each.
+    /// moves its ends by one Newton step each. The loop is made in its
+    /// cache and lent from there (a [`Segment`] is a dozen words: copies of
+    /// it in and out cost as much as a Newton step).
     #[inline(always)]
     fn segment_with(
         &mut self,
@@ -512,47 +518,28 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
-    ) -> Option<Segment> {
+    ) -> Option<&Segment> {
         let origin_recorded = self.top2().0?;
         let scale_bits = offset_scale.to_bits();
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
-        if let Some(s) = self.segment {
-            if s.branch == branch
-                && s.scale_bits == scale_bits
+        let mut warm = None;
+        if let Some(s) = &self.segment {
+            let same_loop = s.branch == branch
                 && s.load_bits == load_bits
                 && s.max_contraction_bits == max_contraction_bits
-                && s.merge_bits == merge_bits
-            {
-                return Some(s);
+                && s.merge_bits == merge_bits;
+            if same_loop && s.scale_bits == scale_bits {
+                return self.segment.as_ref();
             }
-            if ends == Ends::Newton
-                && s.branch == branch
-                && s.load_bits == load_bits
-                && s.max_contraction_bits == max_contraction_bits
-                && s.merge_bits == merge_bits
-            {
-                let warm = Some((s.b_r, s.b_t));
-                let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends);
-                let origin = origin.unwrap_or(origin_recorded);
-                let s = Segment::new(
-                    blend,
-                    model,
-                    origin,
-                    target,
-                    branch,
-                    offset_scale,
-                    ends,
-                    warm,
-                );
-                self.segment = Some(s);
-                return Some(s);
+            if same_loop && ends == Ends::Newton {
+                warm = Some((s.b_r, s.b_t));
             }
         }
         let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends);
         let origin = origin.unwrap_or(origin_recorded);
-        let s = Segment::new(
+        self.segment = Some(Segment::new(
             blend,
             model,
             origin,
@@ -560,10 +547,9 @@ impl<const N: usize> ReversalStack<N> {
             branch,
             offset_scale,
             ends,
-            None,
-        );
-        self.segment = Some(s);
-        Some(s)
+            warm,
+        ));
+        self.segment.as_ref()
     }
 
     /// Contraction at `pressure_mpa` on `branch` with the memory, after
@@ -708,6 +694,7 @@ impl<const N: usize> ReversalStack<N> {
             return branch_pressure_mpa(model, x_ref, branch, offset_scale);
         }
         let blend = params.blend_coeffs();
+        let inner;
         let seg = if len == self.len {
             // The top loop: cached between calls, as for `contraction`.
             match self.segment_with(blend, model, branch, offset_scale, ends) {
@@ -725,7 +712,7 @@ impl<const N: usize> ReversalStack<N> {
             let target = len
                 .checked_sub(2)
                 .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
-            Segment::new(
+            inner = Segment::new(
                 blend,
                 model,
                 origin,
@@ -734,7 +721,8 @@ impl<const N: usize> ReversalStack<N> {
                 offset_scale,
                 ends,
                 None,
-            )
+            );
+            &inner
         };
         if let Some(b) = seg.solve(blend, x_ref) {
             return branch_pressure_mpa(model, clamp(b, lo_x, hi_x), branch, offset_scale);
@@ -856,8 +844,9 @@ fn fraction_between_branches(r: Reversal, recorded: f32, model: &LoadModel, on: 
 /// [`Moved`] (made here when it was not, or was made on another model):
 /// the one Newton step of [`newton_branch`] from the recorded contraction,
 /// with the model's parts there computed once per point instead of once
-/// per move.
-#[inline(never)]
+/// per move. Inlined where points move (the per-period path with a rate
+/// law); making `moved` is out of line.
+#[inline(always)]
 fn moved_newton(
     moved: &mut Moved,
     r: Reversal,
@@ -867,20 +856,14 @@ fn moved_newton(
     offset_scale: f32,
 ) -> Reversal {
     let (lo, hi) = (model.root_contraction(), model.max_contraction());
-    let key = (
-        model.load_n().to_bits(),
-        model.max_contraction().to_bits(),
-        on,
-    );
-    if moved.key != Some(key) {
-        let x = clamp(r.contraction, lo, hi);
-        *moved = Moved {
-            key: Some(key),
-            fraction: fraction_between_branches(r, recorded, model, on),
-            pressure_mpa: clamp(r.pressure_mpa, 0.0, model.max_pressure_mpa()),
-            contraction: x,
-            parts: model.branch_parts(x),
-        };
+    let (load_bits, max_contraction_bits) =
+        (model.load_n().to_bits(), model.max_contraction().to_bits());
+    // Field by field: `==` on an `Option` of a tuple is a library call.
+    let made = matches!(moved.on, Some(b) if b == on)
+        && moved.load_bits == load_bits
+        && moved.max_contraction_bits == max_contraction_bits;
+    if !made {
+        make_moved(moved, r, recorded, model, on);
     }
     let k = moved.fraction * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     if k.abs() == 1.0 {
@@ -904,6 +887,25 @@ fn moved_newton(
     }
 }
 
+/// [`Moved`] for `r`, recorded at `recorded` on `on`, on `model`.
+#[inline(never)]
+fn make_moved(moved: &mut Moved, r: Reversal, recorded: f32, model: &LoadModel, on: Branch) {
+    let x = clamp(
+        r.contraction,
+        model.root_contraction(),
+        model.max_contraction(),
+    );
+    *moved = Moved {
+        on: Some(on),
+        load_bits: model.load_n().to_bits(),
+        max_contraction_bits: model.max_contraction().to_bits(),
+        fraction: fraction_between_branches(r, recorded, model, on),
+        pressure_mpa: clamp(r.pressure_mpa, 0.0, model.max_pressure_mpa()),
+        contraction: x,
+        parts: model.branch_parts(x),
+    };
+}
+
 impl Segment {
     /// The minor loop from `origin` towards `target` (the end of the major
     /// loop when `None`): two branch inverses, solved as `ends` says
@@ -923,21 +925,36 @@ impl Segment {
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
-        let end = |p: f32, x0: Option<f32>| ends.solve(model, p, branch, offset_scale, x0);
-        let b_r = end(origin.pressure_mpa, warm.map(|w| w.0));
-        let (b_t, d_t) = match target {
-            Some(t) => {
-                let b_t = end(t.pressure_mpa, warm.map(|w| w.1));
-                (b_t, t.contraction - b_t)
-            }
+        let p_t = match target {
+            Some(t) => t.pressure_mpa,
             // The first reversal's curve closes on the end of the major loop.
-            None => {
-                let p_end = match branch {
-                    Branch::Contraction => model.max_pressure_mpa(),
-                    Branch::Expansion => 0.0,
-                };
-                (end(p_end, warm.map(|w| w.1)), 0.0)
+            None => match branch {
+                Branch::Contraction => model.max_pressure_mpa(),
+                Branch::Expansion => 0.0,
+            },
+        };
+        let (b_r, b_t) = match warm {
+            // The cached loop at another scale (the per-period path with a
+            // rate law): one Newton step for each end, `Ends::solve`'s
+            // `newton_branch(.., 1)` with what the two share computed once.
+            Some((w_r, w_t)) if ends == Ends::Newton && offset_scale != 1.0 => newton_ends(
+                model,
+                [origin.pressure_mpa, p_t],
+                branch,
+                offset_scale,
+                [w_r, w_t],
+            ),
+            _ => {
+                let end = |p: f32, x0: Option<f32>| ends.solve(model, p, branch, offset_scale, x0);
+                (
+                    end(origin.pressure_mpa, warm.map(|w| w.0)),
+                    end(p_t, warm.map(|w| w.1)),
+                )
             }
+        };
+        let d_t = match target {
+            Some(t) => t.contraction - b_t,
+            None => 0.0,
         };
         let span = b_r - b_t;
         let degenerate = !(span.abs() > 1e-6);
@@ -1031,9 +1048,8 @@ impl Segment {
         let qa = m;
         let qb = k - m + i * self.d_rt - i * c * m;
         let qc = -k * (1.0 + i * c);
-        let mut roots = [f32::NAN; 2];
-        if qa.abs() < 1e-6 {
-            roots[0] = -qc / qb;
+        let (first, second) = if qa.abs() < 1e-6 {
+            (-qc / qb, f32::NAN)
         } else {
             let disc = qb * qb - 4.0 * qa * qc;
             if !(disc >= 0.0) {
@@ -1041,13 +1057,16 @@ impl Segment {
             }
             let root = crate::math::sqrt(disc);
             let q = -0.5 * (qb + if qb >= 0.0 { root } else { -root });
-            roots = [q / qa, qc / q];
-        }
-        roots
-            .into_iter()
-            .filter(|s| (-1e-6..=1.0 + 1e-6).contains(s))
-            .map(|s| self.b_r + (s - 1.0) / i)
-            .find(|&b| fits(b))
+            (q / qa, qc / q)
+        };
+        // The first root in `[0, 1]` (a NaN one is not) whose `B` checks
+        // out, in that order (two candidates written out: an iterator over
+        // them costs a few dozen instructions more on the M4F).
+        let candidate = |s: f32| {
+            let b = self.b_r + (s - 1.0) / i;
+            ((-1e-6..=1.0 + 1e-6).contains(&s) && fits(b)).then_some(b)
+        };
+        candidate(first).or_else(|| candidate(second))
     }
 }
 
@@ -1108,6 +1127,35 @@ fn newton_branch(
         x = clamp(x - (g - p) / slope, lo, hi);
     }
     x
+}
+
+/// [`newton_branch`] with one step from each of `x0` at each of
+/// `pressures_mpa`, bit for bit: the pressure clamp's bound, the factor on
+/// the offset and the stroke computed once for both.
+#[inline(always)]
+fn newton_ends(
+    model: &LoadModel,
+    pressures_mpa: [f32; 2],
+    branch: Branch,
+    offset_scale: f32,
+    x0: [f32; 2],
+) -> (f32, f32) {
+    let pmax = model.max_pressure_mpa();
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
+    let (lo, hi) = (model.root_contraction(), model.max_contraction());
+    let step = |p: f32, x0: f32| {
+        let p = clamp(p, 0.0, pmax);
+        let x = clamp(x0, lo, hi);
+        let (g, slope) = model.branch_and_slope(x, k);
+        if slope > 0.0 {
+            clamp(x - (g - p) / slope, lo, hi)
+        } else {
+            x
+        }
+    };
+    let [p_r, p_t] = pressures_mpa;
+    let [x_r, x_t] = x0;
+    (step(p_r, x_r), step(p_t, x_t))
 }
 
 /// The threshold `θ` of the wiping-out test for the point `target` below the
