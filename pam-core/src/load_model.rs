@@ -711,6 +711,48 @@ impl LoadModel {
         0.5 * (lo + hi)
     }
 
+    /// The table inverse's interpolation alone, before its Newton step
+    /// (the tables must be complete, see [`Self::inverse_ready`]; `R_i`
+    /// otherwise): within a table interval of [`Self::contraction`], where
+    /// an iteration that takes its own steps starts (the scaled inverse,
+    /// whose first step moves it to the scaled branch anyway).
+    pub(crate) fn contraction_interpolated(&self, pressure_mpa: f32, branch: Branch) -> f32 {
+        let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
+        if p >= self.max_pressure_mpa {
+            return self.max_contraction;
+        }
+        self.table_interpolation(p, branch)
+            .map_or(self.root, |(x, _, _, _)| x)
+    }
+
+    /// For `p` in `[0, Pmax)`: the interpolated contraction, the table
+    /// interval's ends and its index, from the complete tables.
+    #[inline(always)]
+    fn table_interpolation(&self, p: f32, branch: Branch) -> Option<(f32, f32, f32, usize)> {
+        let table = match branch {
+            Branch::Contraction => &self.inverse_table[0],
+            Branch::Expansion => &self.inverse_table[1],
+        };
+        let t = p * self.intervals_per_mpa;
+        // `as` saturates, and `min` keeps k + 1 inside the table.
+        let k = (t as usize).min(INVERSE_INTERVALS - 1);
+        let frac = t - k as f32;
+        let (x_lo, x_hi) = match (table.get(k), table.get(k + 1)) {
+            (Some(&a), Some(&b)) => (a, b),
+            _ => return None, // unreachable: k < INVERSE_INTERVALS
+        };
+        // Where the ellipse's vertical tangent meets the stroke end (contraction
+        // branch at R_i, expansion branch at Rx_i), pressure goes as the square
+        // root of the distance to the end, so contraction goes as the square of
+        // the pressure: interpolate quadratically there, linearly elsewhere.
+        let w = match branch {
+            Branch::Contraction if k == 0 => frac * frac,
+            Branch::Expansion if k == INVERSE_INTERVALS - 1 => 1.0 - (1.0 - frac) * (1.0 - frac),
+            _ => frac,
+        };
+        Some((x_lo + w * (x_hi - x_lo), x_lo, x_hi, k))
+    }
+
     /// Inverse model: the contraction at which `branch` has `pressure_mpa`.
     ///
     /// Returns a value in `[R_i, Rx_i]`, never NaN; see the module docs for
@@ -724,28 +766,9 @@ impl LoadModel {
         if p >= self.max_pressure_mpa {
             return self.max_contraction;
         }
-        let table = match branch {
-            Branch::Contraction => &self.inverse_table[0],
-            Branch::Expansion => &self.inverse_table[1],
+        let Some((x, x_lo, x_hi, k)) = self.table_interpolation(p, branch) else {
+            return self.root;
         };
-        let t = p * self.intervals_per_mpa;
-        // `as` saturates, and `min` keeps k + 1 inside the table.
-        let k = (t as usize).min(INVERSE_INTERVALS - 1);
-        let frac = t - k as f32;
-        let (x_lo, x_hi) = match (table.get(k), table.get(k + 1)) {
-            (Some(&a), Some(&b)) => (a, b),
-            _ => return self.root, // unreachable: k < INVERSE_INTERVALS
-        };
-        // Where the ellipse's vertical tangent meets the stroke end (contraction
-        // branch at R_i, expansion branch at Rx_i), pressure goes as the square
-        // root of the distance to the end, so contraction goes as the square of
-        // the pressure: interpolate quadratically there, linearly elsewhere.
-        let w = match branch {
-            Branch::Contraction if k == 0 => frac * frac,
-            Branch::Expansion if k == INVERSE_INTERVALS - 1 => 1.0 - (1.0 - frac) * (1.0 - frac),
-            _ => frac,
-        };
-        let x = x_lo + w * (x_hi - x_lo);
         let (g, dg) = self.branch_and_slope(x, branch.offset_sign());
         // One Newton step, kept inside [x_lo, x_hi] (a step that leaves it:
         // dg = 0 or ±inf, NaN, is not taken). In the expansion branch's last

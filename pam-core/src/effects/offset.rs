@@ -128,7 +128,9 @@ fn scaled_branch_contraction(
     // puts the crossing (while a load switch still builds them, the
     // stroke's middle: their fallback is itself a bisection).
     let start = if model.inverse_ready() {
-        clamp(model.contraction(p, branch), lo, hi)
+        // The tables' interpolation without their Newton step: the
+        // iteration's first step does that work on the scaled branch.
+        clamp(model.contraction_interpolated(p, branch), lo, hi)
     } else {
         0.5 * (lo + hi)
     };
