@@ -244,9 +244,6 @@ pub struct ReversalStack<const N: usize> {
     /// The offset scale each point was recorded at (NaN: not known, the
     /// point is never rescaled; see [`ReversalStack::push_at_scale`]).
     scales: [f32; N],
-    /// What moving each point to another offset scale needs that does not
-    /// depend on that scale ([`Moved`]), made the first time it moves.
-    moved: [Moved; N],
     len: usize,
     segment: Option<Segment>,
 }
@@ -256,7 +253,6 @@ impl<const N: usize> Default for ReversalStack<N> {
         ReversalStack {
             points: [Reversal::default(); N],
             scales: [f32::NAN; N],
-            moved: [Moved::NONE; N],
             len: 0,
             segment: None,
         }
@@ -271,9 +267,19 @@ impl<const N: usize> Default for ReversalStack<N> {
 /// move every period: from these, one move is a few products and the
 /// step's division instead of two evaluations of the model with their
 /// square roots and divisions (bit for bit the same point).
+///
+/// The feedforward keeps one per position of each of its stacks
+/// ([`MovedPoints`], passed to the stack's `*_moved` methods), valid for
+/// the stack's top two positions, the two a minor loop moves: a push
+/// forgets the new top's, a trial made from the memory takes the memory's
+/// top's along, and the feedforward forgets the two a wipe-out exposes.
+/// The stack itself stays as small as the per-sample
+/// [`Simulator`](crate::Simulator) needs (kept in the stack, they cost its
+/// step up to 10 instructions and 640 bytes of RAM at a depth of 16).
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Moved {
-    /// The branch the point was recorded on; `None`: not computed.
+pub(crate) struct Moved {
+    /// The branch the point was recorded on; `None`: not computed (or the
+    /// position's point changed since).
     on: Option<Branch>,
     /// Bits of the load and `Rx_i` of the model they were computed on.
     load_bits: u32,
@@ -287,7 +293,7 @@ struct Moved {
 }
 
 impl Moved {
-    const NONE: Moved = Moved {
+    pub(crate) const NONE: Moved = Moved {
         on: None,
         load_bits: 0,
         max_contraction_bits: 0,
@@ -301,6 +307,34 @@ impl Moved {
             offset_slope: 0.0,
         },
     };
+}
+
+/// One [`Moved`] per stack position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct MovedPoints<const N: usize>([Moved; N]);
+
+impl<const N: usize> Default for MovedPoints<N> {
+    fn default() -> Self {
+        MovedPoints([Moved::NONE; N])
+    }
+}
+
+impl<const N: usize> MovedPoints<N> {
+    /// Position `i` holds another point now.
+    #[inline(always)]
+    pub(crate) fn forget(&mut self, i: usize) {
+        if let Some(m) = self.0.get_mut(i) {
+            m.on = None;
+        }
+    }
+
+    /// The stack dropped its oldest point (every point moved down one).
+    #[inline(always)]
+    fn shift(&mut self) {
+        if N > 1 {
+            self.0.copy_within(1.., 0);
+        }
+    }
 }
 
 impl<const N: usize> ReversalStack<N> {
@@ -331,23 +365,46 @@ impl<const N: usize> ReversalStack<N> {
     /// contraction while the rate law widened the loop around it, and the
     /// memory drove the curve up to 0.03 off the rate law's branches.
     pub fn push_at_scale(&mut self, r: Reversal, offset_scale: f32) {
+        self.push_impl(r, offset_scale, None);
+    }
+
+    /// [`Self::push_at_scale`], keeping `moved` (the [`Moved`] of each
+    /// position) in step.
+    pub(crate) fn push_at_scale_moved(
+        &mut self,
+        r: Reversal,
+        offset_scale: f32,
+        moved: &mut MovedPoints<N>,
+    ) {
+        self.push_impl(r, offset_scale, Some(moved));
+    }
+
+    #[inline(always)]
+    fn push_impl(
+        &mut self,
+        r: Reversal,
+        offset_scale: f32,
+        mut moved: Option<&mut MovedPoints<N>>,
+    ) {
         if !(r.pressure_mpa.is_finite() && r.contraction.is_finite()) || N == 0 {
             return;
         }
         if self.len >= N {
             self.points.copy_within(1.., 0);
             self.scales.copy_within(1.., 0);
-            self.moved.copy_within(1.., 0);
+            if let Some(m) = moved.as_deref_mut() {
+                m.shift();
+            }
             self.len = N - 1;
         }
-        if let (Some(slot), Some(scale), Some(moved)) = (
-            self.points.get_mut(self.len),
-            self.scales.get_mut(self.len),
-            self.moved.get_mut(self.len),
-        ) {
+        if let Some(m) = moved {
+            m.forget(self.len);
+        }
+        if let (Some(slot), Some(scale)) =
+            (self.points.get_mut(self.len), self.scales.get_mut(self.len))
+        {
             *slot = r;
             *scale = offset_scale;
-            moved.on = None;
             self.len += 1;
         }
         self.segment = None;
@@ -358,25 +415,29 @@ impl<const N: usize> ReversalStack<N> {
     /// without a rate law: two loads and a compare). `on` is the branch it
     /// was recorded on, which places it when its own scale was too small to
     /// tell the branches apart.
+    /// `moved`: the feedforward's [`Moved`] per position (with
+    /// [`Ends::Newton`]).
     #[inline(always)]
     fn point_at_scale(
-        &mut self,
+        &self,
         i: usize,
         model: &LoadModel,
         on: Branch,
         offset_scale: f32,
         ends: Ends,
+        moved: Option<&mut MovedPoints<N>>,
     ) -> Option<Reversal> {
         let r = *self.points.get(i)?;
         let recorded = *self.scales.get(i)?;
         if !recorded.is_finite() || recorded.to_bits() == offset_scale.to_bits() {
             return Some(r);
         }
-        if ends == Ends::Exact {
-            return Some(rescaled(r, recorded, model, on, offset_scale, ends));
+        match moved.and_then(|m| m.0.get_mut(i)) {
+            Some(m) if ends == Ends::Newton => {
+                Some(moved_newton(m, r, recorded, model, on, offset_scale))
+            }
+            _ => Some(rescaled(r, recorded, model, on, offset_scale, ends)),
         }
-        let moved = self.moved.get_mut(i)?;
-        Some(moved_newton(moved, r, recorded, model, on, offset_scale))
     }
 
     /// The top point and the one below, as they lie at `offset_scale` for
@@ -386,11 +447,12 @@ impl<const N: usize> ReversalStack<N> {
     /// is: the path without a rate law costs two compares.
     #[inline(always)]
     fn top2_at_scale(
-        &mut self,
+        &self,
         model: &LoadModel,
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
+        moved: Option<&mut MovedPoints<N>>,
     ) -> (Option<Reversal>, Option<Reversal>) {
         let same = |i: Option<usize>| {
             i.and_then(|i| self.scales.get(i))
@@ -399,26 +461,27 @@ impl<const N: usize> ReversalStack<N> {
         if same(self.len.checked_sub(1)) && same(self.len.checked_sub(2)) {
             return self.top2();
         }
-        self.top2_rescaled(model, branch, offset_scale, ends)
+        self.top2_rescaled(model, branch, offset_scale, ends, moved)
     }
 
     /// [`Self::top2_at_scale`]'s path where a point moves.
     #[inline(never)]
     fn top2_rescaled(
-        &mut self,
+        &self,
         model: &LoadModel,
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
+        mut moved: Option<&mut MovedPoints<N>>,
     ) -> (Option<Reversal>, Option<Reversal>) {
-        let top = self
-            .len
-            .checked_sub(1)
-            .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
+        let top = self.len.checked_sub(1).and_then(|i| {
+            let on = branch.opposite();
+            self.point_at_scale(i, model, on, offset_scale, ends, moved.as_deref_mut())
+        });
         let below = self
             .len
             .checked_sub(2)
-            .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
+            .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends, moved));
         (top, below)
     }
 
@@ -426,30 +489,38 @@ impl<const N: usize> ReversalStack<N> {
     /// ([`Self::push_at_scale`] on a copy), copying only `other`'s
     /// remembered points: not the whole capacity, nor its cached loop,
     /// which the push forgets.
-    pub(crate) fn set_pushed(&mut self, other: &Self, r: Reversal, offset_scale: f32) {
+    /// `moved` is this stack's [`Moved`] per position, `other_moved`
+    /// `other`'s: valid for the top two positions only (the two a minor
+    /// loop moves; the caller forgets the two a wipe-out exposes, and the
+    /// inverse's look past closed loops does not use them). The point below
+    /// `r`, `other`'s top, brings its own along; `r`'s position is
+    /// forgotten.
+    pub(crate) fn set_pushed_moved(
+        &mut self,
+        other: &Self,
+        r: Reversal,
+        offset_scale: f32,
+        moved: &mut MovedPoints<N>,
+        other_moved: &MovedPoints<N>,
+    ) {
         let len = other.len.min(N);
-        for (((to, to_scale), to_moved), (from, from_scale)) in self
+        for ((to, to_scale), (from, from_scale)) in self
             .points
             .iter_mut()
             .zip(self.scales.iter_mut())
-            .zip(self.moved.iter_mut())
             .zip(other.points.iter().zip(&other.scales))
             .take(len)
         {
             *to = *from;
             *to_scale = *from_scale;
-            to_moved.on = None;
         }
-        // `other`'s top point is the one below `r`, which the new minor
-        // loop moves: its `Moved` comes along (the others are made again
-        // if a wipe-out reaches them).
         if let Some(top) = len.checked_sub(1) {
-            if let (Some(to), Some(from)) = (self.moved.get_mut(top), other.moved.get(top)) {
+            if let (Some(to), Some(from)) = (moved.0.get_mut(top), other_moved.0.get(top)) {
                 *to = *from;
             }
         }
         self.len = len;
-        self.push_at_scale(r, offset_scale);
+        self.push_impl(r, offset_scale, Some(moved));
     }
 
     /// Whether the top minor loop is cached (then [`Self::contraction`] and
@@ -502,7 +573,7 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
     ) -> Option<&Segment> {
-        self.segment_with(blend, model, branch, offset_scale, Ends::Exact)
+        self.segment_with(blend, model, branch, offset_scale, Ends::Exact, None)
     }
 
     /// [`Self::segment`] with the loop's ends solved as `ends` says; with
@@ -518,6 +589,7 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
+        moved: Option<&mut MovedPoints<N>>,
     ) -> Option<&Segment> {
         let origin_recorded = self.top2().0?;
         let scale_bits = offset_scale.to_bits();
@@ -537,7 +609,7 @@ impl<const N: usize> ReversalStack<N> {
                 warm = Some((s.b_r, s.b_t));
             }
         }
-        let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends);
+        let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends, moved);
         let origin = origin.unwrap_or(origin_recorded);
         self.segment = Some(Segment::new(
             blend,
@@ -632,6 +704,7 @@ impl<const N: usize> ReversalStack<N> {
             branch,
             offset_scale,
             Ends::Exact,
+            None,
         )
     }
 
@@ -660,10 +733,35 @@ impl<const N: usize> ReversalStack<N> {
             branch,
             offset_scale,
             Ends::Newton,
+            None,
         )
     }
 
-    // Inlined into both callers, so each is specialised for its `ends`.
+    /// [`Self::feedforward_pressure_mpa`] with the [`Moved`] of each
+    /// position kept in `moved` between calls (the same result, bit for
+    /// bit; the feedforward's per-period path with a rate law).
+    pub(crate) fn feedforward_pressure_mpa_moved(
+        &mut self,
+        moved: &mut MovedPoints<N>,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        contraction: f32,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> f32 {
+        self.inverse_impl(
+            params,
+            model,
+            contraction,
+            branch,
+            offset_scale,
+            Ends::Newton,
+            Some(moved),
+        )
+    }
+
+    // Inlined into its callers, so each is specialised for its `ends`.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn inverse_impl(
         &mut self,
@@ -673,6 +771,7 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
+        moved: Option<&mut MovedPoints<N>>,
     ) -> f32 {
         let (lo_x, hi_x) = (model.root_contraction(), model.max_contraction());
         let x_ref = clamp(contraction, lo_x, hi_x);
@@ -697,21 +796,23 @@ impl<const N: usize> ReversalStack<N> {
         let inner;
         let seg = if len == self.len {
             // The top loop: cached between calls, as for `contraction`.
-            match self.segment_with(blend, model, branch, offset_scale, ends) {
+            match self.segment_with(blend, model, branch, offset_scale, ends, moved) {
                 Some(seg) => seg,
                 None => return branch_pressure_mpa(model, x_ref, branch, offset_scale),
             }
         } else {
             // An inner loop of the stack (the top one closed here).
-            let origin = len
-                .checked_sub(1)
-                .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
+            // (Not with `moved`: valid for the top two positions only.)
+            let origin = len.checked_sub(1).and_then(|i| {
+                let on = branch.opposite();
+                self.point_at_scale(i, model, on, offset_scale, ends, None)
+            });
             let Some(origin) = origin else {
                 return branch_pressure_mpa(model, x_ref, branch, offset_scale);
             };
             let target = len
                 .checked_sub(2)
-                .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
+                .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends, None));
             inner = Segment::new(
                 blend,
                 model,
@@ -1249,6 +1350,81 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_feedforward_with_moved_points_is_the_one_without_bit_for_bit() {
+        // A random walk of the feedforward's stack operations (pushes, a
+        // trial made from the memory and flipped in, wipe-outs) at offset
+        // scales that change every call: the inverse with `MovedPoints`
+        // kept between calls against the one that moves every point afresh.
+        let m = model();
+        let mem = NonLocalMemory::with_shape(0.7);
+        let mut seed = 12345u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let (lo, hi) = (m.root_contraction(), m.max_contraction());
+        let mut stacks = [ReversalStack::<4>::default(); 2];
+        let mut moved = [MovedPoints::<4>::default(); 2];
+        let mut plain = ReversalStack::<4>::default();
+        let mut current = 0;
+        let mut branch = Branch::Contraction;
+        for k in 0..20_000 {
+            let scale = 0.6 + 1.5 * next();
+            let x = lo + (hi - lo) * next();
+            let r = Reversal {
+                pressure_mpa: m.max_pressure_mpa() * next(),
+                contraction: x,
+            };
+            match (next() * 8.0) as u32 {
+                0 => {
+                    stacks[current].push_at_scale_moved(r, scale, &mut moved[current]);
+                    plain.push_at_scale(r, scale);
+                    branch = branch.opposite();
+                }
+                1 => {
+                    // The trial: the memory with `r` pushed, then flipped in.
+                    let (a, b) = stacks.split_at_mut(1);
+                    let (ma, mb) = moved.split_at_mut(1);
+                    if current == 0 {
+                        b[0].set_pushed_moved(&a[0], r, scale, &mut mb[0], &ma[0]);
+                    } else {
+                        a[0].set_pushed_moved(&b[0], r, scale, &mut ma[0], &mb[0]);
+                    }
+                    current = 1 - current;
+                    plain.push_at_scale(r, scale);
+                    branch = branch.opposite();
+                }
+                2 => {
+                    let before = stacks[current].points().len();
+                    stacks[current].wipe_out(r.pressure_mpa, branch);
+                    plain.wipe_out(r.pressure_mpa, branch);
+                    let after = stacks[current].points().len();
+                    if after < before {
+                        if let Some(i) = after.checked_sub(1) {
+                            moved[current].forget(i);
+                        }
+                        if let Some(i) = after.checked_sub(2) {
+                            moved[current].forget(i);
+                        }
+                    }
+                }
+                _ => {}
+            }
+            assert_eq!(stacks[current].points(), plain.points(), "{k}");
+            let want = plain.feedforward_pressure_mpa(&mem, &m, x, branch, scale);
+            let got = stacks[current].feedforward_pressure_mpa_moved(
+                &mut moved[current],
+                &mem,
+                &m,
+                x,
+                branch,
+                scale,
+            );
+            assert_eq!(got.to_bits(), want.to_bits(), "{k}");
         }
     }
 
