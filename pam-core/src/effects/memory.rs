@@ -928,14 +928,21 @@ fn rescaled(
 /// ([`rescaled`]).
 #[inline(always)]
 fn fraction_between_branches(r: Reversal, recorded: f32, model: &LoadModel, on: Branch) -> f32 {
+    let (cm, y) = (
+        model.constraint_pressure_mpa(r.contraction),
+        model.offset_mpa(r.contraction),
+    );
+    fraction_from(r, recorded, cm, y, on)
+}
+
+/// [`fraction_between_branches`] given `CM(x)` and `y_hys(x)` at the
+/// point's contraction.
+#[inline(always)]
+fn fraction_from(r: Reversal, recorded: f32, cm: f32, y: f32, on: Branch) -> f32 {
     let recorded = clamp(recorded, 0.0, MAX_OFFSET_SCALE);
-    let offset = recorded * model.offset_mpa(r.contraction);
+    let offset = recorded * y;
     if offset.abs() > 1e-9 {
-        clamp(
-            (r.pressure_mpa - model.constraint_pressure_mpa(r.contraction)) / offset,
-            -1.0,
-            1.0,
-        )
+        clamp((r.pressure_mpa - cm) / offset, -1.0, 1.0)
     } else {
         on.offset_sign()
     }
@@ -996,14 +1003,19 @@ fn make_moved(moved: &mut Moved, r: Reversal, recorded: f32, model: &LoadModel, 
         model.root_contraction(),
         model.max_contraction(),
     );
+    // `CM` and `y_hys` at the contraction clamped to the stroke are the
+    // fraction's at the point's own, bit for bit: `constraint_pressure_mpa`
+    // clamps the same way, and `offset_mpa` is 0 outside the stroke as at
+    // its ends (NaN → `R_i`: 0 there too).
+    let parts = model.branch_parts(x);
     *moved = Moved {
         on: Some(on),
         load_bits: model.load_n().to_bits(),
         max_contraction_bits: model.max_contraction().to_bits(),
-        fraction: fraction_between_branches(r, recorded, model, on),
+        fraction: fraction_from(r, recorded, parts.cubic, parts.offset, on),
         pressure_mpa: clamp(r.pressure_mpa, 0.0, model.max_pressure_mpa()),
         contraction: x,
-        parts: model.branch_parts(x),
+        parts,
     };
 }
 
