@@ -75,7 +75,7 @@
 //! [model_contraction]: crate::effects::ConstraintShape::model_contraction
 
 use crate::branch::Branch;
-use crate::effects::memory::branch_pressure_mpa;
+use crate::effects::memory::{branch_pressure_mpa, MovedPoints};
 use crate::effects::{
     Creep, CreepState, Effects, NonLocalMemory, PressureLagState, RateState, Reversal,
     ReversalStack, ShapeInverse, MAX_OFFSET_SCALE, MAX_STEP_S,
@@ -342,6 +342,9 @@ struct MemoryState<const N: usize> {
     /// The last feedforward computed a minor loop's ends (two branch
     /// inverses) instead of using the cached loop.
     rebuilt_loop: bool,
+    /// What moving each point of `stacks` to another offset scale needs
+    /// ([`MovedPoints`]), one per stack, in the same order.
+    moved: (MovedPoints<N>, MovedPoints<N>),
 }
 
 impl<const N: usize> MemoryState<N> {
@@ -404,7 +407,8 @@ impl<const N: usize> MemoryState<N> {
                     self.trial_valid = false;
                 } else {
                     let scale = self.extreme_scale;
-                    self.stack_and_trial().0.push_at_scale(r, scale);
+                    let (stack, _, moved, _) = memory_and_trial_moved(self);
+                    stack.push_at_scale_moved(r, scale, moved);
                 }
             }
         }
@@ -417,23 +421,26 @@ impl<const N: usize> MemoryState<N> {
                 let make = !self.trial_valid;
                 self.trial_valid = true;
                 let scale = self.extreme_scale;
-                let (stack, trial) = memory_and_trial(&mut self.stacks, self.flip);
+                let (stack, trial, stack_moved, trial_moved) = memory_and_trial_moved(self);
                 if make {
-                    trial.set_pushed(stack, e, scale);
+                    trial.set_pushed_moved(stack, e, scale, trial_moved, stack_moved);
                 }
-                self.rebuilt_loop = !trial.has_cached_loop();
-                return trial.feedforward_pressure_mpa(
+                let rebuilt = !trial.has_cached_loop();
+                let p_mpa = trial.feedforward_pressure_mpa_moved(
+                    trial_moved,
                     params,
                     model,
                     x_model,
                     branch.opposite(),
                     offset_scale,
                 );
+                self.rebuilt_loop = rebuilt;
+                return p_mpa;
             }
         }
         // The memory moves on (wipe-out, new extreme): the trial is stale.
         self.trial_valid = false;
-        let stack = memory_and_trial(&mut self.stacks, self.flip).0;
+        let (stack, _, moved, _) = memory_and_trial_moved(self);
         let before = stack.points().len();
         let cached = stack.has_cached_loop();
         let p_mpa = if stack.points().is_empty() {
@@ -441,12 +448,30 @@ impl<const N: usize> MemoryState<N> {
             // inverse is the forward model, eqs. (25)/(26).
             branch_pressure_mpa(model, x_model, branch, offset_scale)
         } else {
-            stack.feedforward_pressure_mpa(params, model, x_model, branch, offset_scale)
+            stack.feedforward_pressure_mpa_moved(
+                moved,
+                params,
+                model,
+                x_model,
+                branch,
+                offset_scale,
+            )
         };
         stack.wipe_out(p_mpa, branch);
+        let after = stack.points().len();
+        if after < before {
+            // The points a wipe-out exposes were not the top two: their
+            // `Moved` may be another point's.
+            if let Some(i) = after.checked_sub(1) {
+                moved.forget(i);
+            }
+            if let Some(i) = after.checked_sub(2) {
+                moved.forget(i);
+            }
+        }
         // A loop's ends were computed unless the cached loop served (a
         // closed loop, popped here, was evaluated afresh).
-        self.rebuilt_loop = before > 0 && (!cached || stack.points().len() < before);
+        self.rebuilt_loop = before > 0 && (!cached || after < before);
         // At or beyond the sweep's extreme: the turning point of the next reversal.
         self.extreme = Some(Reversal {
             pressure_mpa: p_mpa,
@@ -455,6 +480,25 @@ impl<const N: usize> MemoryState<N> {
         self.extreme_scale = offset_scale;
         self.extreme_ref = x_ref;
         p_mpa
+    }
+}
+
+/// The memory, the trial and their [`MovedPoints`] of `state` for its
+/// `flip`.
+fn memory_and_trial_moved<const N: usize>(
+    state: &mut MemoryState<N>,
+) -> (
+    &mut ReversalStack<N>,
+    &mut ReversalStack<N>,
+    &mut MovedPoints<N>,
+    &mut MovedPoints<N>,
+) {
+    let (a, b) = &mut state.stacks;
+    let (ma, mb) = &mut state.moved;
+    if state.flip {
+        (b, a, mb, ma)
+    } else {
+        (a, b, ma, mb)
     }
 }
 

@@ -46,6 +46,33 @@ use crate::branch::Branch;
 use crate::load_family::LoadCubic;
 use crate::math::{clamp, sqrt};
 
+/// The constraint model and the ellipse offset at one contraction, with
+/// their slopes ([`LoadModel::branch_parts`]): the branch with the offset
+/// times `k` is `cubic + k·offset`, its slope `cubic_slope + k·offset_slope`
+/// (evaluated in that order, bit for bit [`LoadModel::branch_and_slope`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct BranchParts {
+    /// `CM(x)`, eq. (21).
+    pub cubic: f32,
+    /// `y_hys(x)`, eq. (24) (0 outside the ellipse).
+    pub offset: f32,
+    /// `CM'(x)`.
+    pub cubic_slope: f32,
+    /// `y_hys'(x)` (0 outside the ellipse).
+    pub offset_slope: f32,
+}
+
+impl BranchParts {
+    /// Branch pressure and slope with the offset times `k`.
+    #[inline(always)]
+    pub(crate) fn at(&self, k: f32) -> (f32, f32) {
+        (
+            self.cubic + k * self.offset,
+            self.cubic_slope + k * self.offset_slope,
+        )
+    }
+}
+
 /// Intervals of the inverse table per branch, uniform in pressure over
 /// `[0, Pmax]`.
 pub const INVERSE_INTERVALS: usize = 64;
@@ -118,6 +145,37 @@ impl TableBuild {
             iteration: 0,
         }
     }
+
+    /// [`Self::new`] in place, without clearing the hull: the build writes
+    /// every hull knot before it reads one (stage `Hull`), so only the
+    /// cursor needs resetting (a load switch then costs no 33-float clear
+    /// and copy).
+    pub(crate) fn restart(&mut self) {
+        self.stage = Stage::Hull;
+        self.branch = Branch::Contraction;
+        self.running = 0.0;
+        self.j = 0;
+        self.k = 0;
+        self.p = 0.0;
+        self.lo = 0.0;
+        self.hi = 0.0;
+        self.x = 0.0;
+        self.iteration = 0;
+    }
+}
+
+/// A [`LoadModel`]'s coefficients, without its tables.
+#[derive(Clone, Copy, Debug)]
+struct ModelCoefficients {
+    load_n: f32,
+    root: f32,
+    max_contraction: f32,
+    /// `a_i`, `b`, `c_i` of eq. (21).
+    abc: [f32; 3],
+    height_mpa: f32,
+    centre: f32,
+    ellipse_k2: f32,
+    max_pressure_mpa: f32,
 }
 
 /// The load family (eqs. 16–19) in `f32`, for building a [`LoadModel`] at
@@ -162,6 +220,24 @@ impl FamilyF32 {
     /// minimum load) without its inverse tables, eqs. (16)–(21) and (24):
     /// fixed work, four divisions.
     pub(crate) fn model_without_tables(&self, load_n: f32) -> LoadModel {
+        let c = self.coefficients(load_n);
+        LoadModel::from_coefficients(c)
+    }
+
+    /// [`Self::model_without_tables`] written into `model`, whose inverse
+    /// tables are left as they are and marked not ready: a table build
+    /// writes every entry before [`LoadModel::inverse_ready`] is true again
+    /// and reads none, so a load switch does not clear and copy the two
+    /// tables (130 `f32`) the build overwrites.
+    pub(crate) fn set_model_without_tables(&self, model: &mut LoadModel, load_n: f32) {
+        let c = self.coefficients(load_n);
+        model.set_coefficients(c);
+    }
+
+    /// The model's coefficients at `load_n` (clamped to the calibrated
+    /// range).
+    #[inline(always)]
+    fn coefficients(&self, load_n: f32) -> ModelCoefficients {
         let load_n = clamp(load_n, self.min_load_n, self.max_load_n);
         let s = (load_n - self.min_load_n) * self.steps_per_n;
         // eqs. (17), (18), (19)
@@ -174,16 +250,16 @@ impl FamilyF32 {
         // eq. (24): ae_i = (Rx_i − R_i)/2, centre R_i + ae_i (corrected).
         let half_width = 0.5 * (rx - root);
         let k = self.height_mpa / half_width;
-        LoadModel::from_coefficients(
+        ModelCoefficients {
             load_n,
             root,
-            rx,
-            [a, b, c],
-            self.height_mpa,
-            root + half_width,
-            k * k,
-            pmax,
-        )
+            max_contraction: rx,
+            abc: [a, b, c],
+            height_mpa: self.height_mpa,
+            centre: root + half_width,
+            ellipse_k2: k * k,
+            max_pressure_mpa: pmax,
+        }
     }
 
     /// Whether the model this builds at `load_n` has finite coefficients
@@ -261,49 +337,61 @@ impl LoadModel {
     /// `f64` construction rounded once): the host path.
     pub(crate) fn new(at: &LoadCubic) -> LoadModel {
         let ellipse = at.ellipse();
-        let mut model = LoadModel::from_coefficients(
-            at.load_n as f32,
-            at.cubic.root as f32,
-            at.max_contraction as f32,
-            [at.cubic.a as f32, at.cubic.b as f32, at.cubic.c as f32],
-            at.ellipse_height_mpa as f32,
+        let mut model = LoadModel::from_coefficients(ModelCoefficients {
+            load_n: at.load_n as f32,
+            root: at.cubic.root as f32,
+            max_contraction: at.max_contraction as f32,
+            abc: [at.cubic.a as f32, at.cubic.b as f32, at.cubic.c as f32],
+            height_mpa: at.ellipse_height_mpa as f32,
             // eq. (24), centre corrected to R_i + ae_i (see `Ellipse::centre`).
-            ellipse.centre() as f32,
-            ellipse.k2() as f32,
-            at.max_pressure_mpa as f32,
-        );
+            centre: ellipse.centre() as f32,
+            ellipse_k2: ellipse.k2() as f32,
+            max_pressure_mpa: at.max_pressure_mpa as f32,
+        });
         model.build_tables();
         model
     }
 
     /// The model without its inverse tables (all entries `R_i`): the start
     /// of a [`TableBuild`].
-    #[allow(clippy::too_many_arguments)]
-    fn from_coefficients(
-        load_n: f32,
-        root: f32,
-        max_contraction: f32,
-        [a, b, c]: [f32; 3],
-        height_mpa: f32,
-        centre: f32,
-        ellipse_k2: f32,
-        max_pressure_mpa: f32,
-    ) -> LoadModel {
-        LoadModel {
-            load_n,
-            root,
-            max_contraction,
-            a,
-            b,
-            c,
-            height_mpa,
-            centre,
-            ellipse_k2,
-            max_pressure_mpa,
-            intervals_per_mpa: INVERSE_INTERVALS as f32 / max_pressure_mpa,
-            inverse_table: [[root; INVERSE_INTERVALS + 1]; 2],
+    fn from_coefficients(c: ModelCoefficients) -> LoadModel {
+        let mut model = LoadModel {
+            load_n: 0.0,
+            root: c.root,
+            max_contraction: 0.0,
+            a: 0.0,
+            b: 0.0,
+            c: 0.0,
+            height_mpa: 0.0,
+            centre: 0.0,
+            ellipse_k2: 0.0,
+            max_pressure_mpa: 0.0,
+            intervals_per_mpa: 0.0,
+            inverse_table: [[c.root; INVERSE_INTERVALS + 1]; 2],
             tables_ready: false,
-        }
+        };
+        model.set_coefficients(c);
+        model
+    }
+
+    /// The coefficients of `c`, the inverse tables marked not ready (their
+    /// entries left as they are: a [`TableBuild`] overwrites every one
+    /// before they are used).
+    #[inline(always)]
+    fn set_coefficients(&mut self, c: ModelCoefficients) {
+        let [a, b, cc] = c.abc;
+        self.load_n = c.load_n;
+        self.root = c.root;
+        self.max_contraction = c.max_contraction;
+        self.a = a;
+        self.b = b;
+        self.c = cc;
+        self.height_mpa = c.height_mpa;
+        self.centre = c.centre;
+        self.ellipse_k2 = c.ellipse_k2;
+        self.max_pressure_mpa = c.max_pressure_mpa;
+        self.intervals_per_mpa = INVERSE_INTERVALS as f32 / c.max_pressure_mpa;
+        self.tables_ready = false;
     }
 
     /// Both inverse tables at once (construction on the host or at boot).
@@ -559,6 +647,31 @@ impl LoadModel {
         )
     }
 
+    /// The parts of [`Self::branch_and_slope`] at `x` that do not depend
+    /// on the factor on the offset, the same operations in the same order
+    /// (`BranchParts::at` is it bit for bit; the test
+    /// `branch_parts_are_branch_and_slope_bit_for_bit`): a caller that
+    /// evaluates one contraction at several factors (a remembered reversal
+    /// moved to each period's offset scale) computes them once.
+    pub(crate) fn branch_parts(&self, x: f32) -> BranchParts {
+        let q = (self.a * x - self.b) * x + self.c;
+        let dq = 2.0 * self.a * x - self.b;
+        let w = self.radicand(x);
+        let (y, dy) = if w > 0.0 {
+            let y = sqrt(w);
+            // d/dx √(k²(x − R)(Rx − x)) = k²(h − x)/√(…), h = (R + Rx)/2.
+            (y, self.ellipse_k2 * (self.centre - x) / y)
+        } else {
+            (0.0, 0.0)
+        };
+        BranchParts {
+            cubic: (x - self.root) * q,
+            offset: y,
+            cubic_slope: q + (x - self.root) * dq,
+            offset_slope: dy,
+        }
+    }
+
     /// Whether the inverse tables are complete. A model whose tables a
     /// [`crate::Tracker`] is still building (after a load switch with a
     /// build budget) evaluates forward at full speed, but its
@@ -598,6 +711,48 @@ impl LoadModel {
         0.5 * (lo + hi)
     }
 
+    /// The table inverse's interpolation alone, before its Newton step
+    /// (the tables must be complete, see [`Self::inverse_ready`]; `R_i`
+    /// otherwise): within a table interval of [`Self::contraction`], where
+    /// an iteration that takes its own steps starts (the scaled inverse,
+    /// whose first step moves it to the scaled branch anyway).
+    pub(crate) fn contraction_interpolated(&self, pressure_mpa: f32, branch: Branch) -> f32 {
+        let p = clamp(pressure_mpa, 0.0, self.max_pressure_mpa);
+        if p >= self.max_pressure_mpa {
+            return self.max_contraction;
+        }
+        self.table_interpolation(p, branch)
+            .map_or(self.root, |(x, _, _, _)| x)
+    }
+
+    /// For `p` in `[0, Pmax)`: the interpolated contraction, the table
+    /// interval's ends and its index, from the complete tables.
+    #[inline(always)]
+    fn table_interpolation(&self, p: f32, branch: Branch) -> Option<(f32, f32, f32, usize)> {
+        let table = match branch {
+            Branch::Contraction => &self.inverse_table[0],
+            Branch::Expansion => &self.inverse_table[1],
+        };
+        let t = p * self.intervals_per_mpa;
+        // `as` saturates, and `min` keeps k + 1 inside the table.
+        let k = (t as usize).min(INVERSE_INTERVALS - 1);
+        let frac = t - k as f32;
+        let (x_lo, x_hi) = match (table.get(k), table.get(k + 1)) {
+            (Some(&a), Some(&b)) => (a, b),
+            _ => return None, // unreachable: k < INVERSE_INTERVALS
+        };
+        // Where the ellipse's vertical tangent meets the stroke end (contraction
+        // branch at R_i, expansion branch at Rx_i), pressure goes as the square
+        // root of the distance to the end, so contraction goes as the square of
+        // the pressure: interpolate quadratically there, linearly elsewhere.
+        let w = match branch {
+            Branch::Contraction if k == 0 => frac * frac,
+            Branch::Expansion if k == INVERSE_INTERVALS - 1 => 1.0 - (1.0 - frac) * (1.0 - frac),
+            _ => frac,
+        };
+        Some((x_lo + w * (x_hi - x_lo), x_lo, x_hi, k))
+    }
+
     /// Inverse model: the contraction at which `branch` has `pressure_mpa`.
     ///
     /// Returns a value in `[R_i, Rx_i]`, never NaN; see the module docs for
@@ -611,28 +766,9 @@ impl LoadModel {
         if p >= self.max_pressure_mpa {
             return self.max_contraction;
         }
-        let table = match branch {
-            Branch::Contraction => &self.inverse_table[0],
-            Branch::Expansion => &self.inverse_table[1],
+        let Some((x, x_lo, x_hi, k)) = self.table_interpolation(p, branch) else {
+            return self.root;
         };
-        let t = p * self.intervals_per_mpa;
-        // `as` saturates, and `min` keeps k + 1 inside the table.
-        let k = (t as usize).min(INVERSE_INTERVALS - 1);
-        let frac = t - k as f32;
-        let (x_lo, x_hi) = match (table.get(k), table.get(k + 1)) {
-            (Some(&a), Some(&b)) => (a, b),
-            _ => return self.root, // unreachable: k < INVERSE_INTERVALS
-        };
-        // Where the ellipse's vertical tangent meets the stroke end (contraction
-        // branch at R_i, expansion branch at Rx_i), pressure goes as the square
-        // root of the distance to the end, so contraction goes as the square of
-        // the pressure: interpolate quadratically there, linearly elsewhere.
-        let w = match branch {
-            Branch::Contraction if k == 0 => frac * frac,
-            Branch::Expansion if k == INVERSE_INTERVALS - 1 => 1.0 - (1.0 - frac) * (1.0 - frac),
-            _ => frac,
-        };
-        let x = x_lo + w * (x_hi - x_lo);
         let (g, dg) = self.branch_and_slope(x, branch.offset_sign());
         // One Newton step, kept inside [x_lo, x_hi] (a step that leaves it:
         // dg = 0 or ±inf, NaN, is not taken). In the expansion branch's last
@@ -795,6 +931,23 @@ mod tests {
                 (dip / estimate - 1.0).abs() < 0.05,
                 "{load} N: dip {dip}, estimate {estimate}"
             );
+        }
+    }
+
+    #[test]
+    fn branch_parts_are_branch_and_slope_bit_for_bit() {
+        for load in [100.0f32, 350.0, 600.0] {
+            let m = model(load);
+            let (lo, hi) = (m.root_contraction(), m.max_contraction());
+            for i in 0..=200 {
+                let x = lo + (hi - lo) * (i as f32 / 200.0);
+                let parts = m.branch_parts(x);
+                for k in [-4.0f32, -1.3, -1.0, -0.0, 0.0, 0.4, 1.0, 2.2, 4.0] {
+                    let (g, s) = m.branch_and_slope(x, k);
+                    let (pg, ps) = parts.at(k);
+                    assert_eq!((g.to_bits(), s.to_bits()), (pg.to_bits(), ps.to_bits()));
+                }
+            }
         }
     }
 

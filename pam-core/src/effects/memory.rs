@@ -62,7 +62,7 @@
 
 use crate::branch::Branch;
 use crate::error::Error;
-use crate::load_model::LoadModel;
+use crate::load_model::{BranchParts, LoadModel};
 use crate::math::clamp;
 
 use super::offset::{branch_contraction, MAX_OFFSET_SCALE};
@@ -259,6 +259,84 @@ impl<const N: usize> Default for ReversalStack<N> {
     }
 }
 
+/// The part of [`rescaled`] with [`Ends::Newton`] that does not depend on
+/// the offset scale the point moves to: its fraction `φ` of the way between
+/// the branches, and the constraint model and the offset with their slopes
+/// at its contraction, where the Newton step starts. With a rate law the
+/// scale changes every period, and the points of the loop being followed
+/// move every period: from these, one move is a few products and the
+/// step's division instead of two evaluations of the model with their
+/// square roots and divisions (bit for bit the same point).
+///
+/// The feedforward keeps one per position of each of its stacks
+/// ([`MovedPoints`], passed to the stack's `*_moved` methods), valid for
+/// the stack's top two positions, the two a minor loop moves: a push
+/// forgets the new top's, a trial made from the memory takes the memory's
+/// top's along, and the feedforward forgets the two a wipe-out exposes.
+/// The stack itself stays as small as the per-sample
+/// [`Simulator`](crate::Simulator) needs (kept in the stack, they cost its
+/// step up to 10 instructions and 640 bytes of RAM at a depth of 16).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Moved {
+    /// The branch the point was recorded on; `None`: not computed (or the
+    /// position's point changed since).
+    on: Option<Branch>,
+    /// Bits of the load and `Rx_i` of the model they were computed on.
+    load_bits: u32,
+    max_contraction_bits: u32,
+    fraction: f32,
+    /// The point's pressure clamped to `[0, Pmax]` and contraction clamped
+    /// to the stroke (where the Newton step starts).
+    pressure_mpa: f32,
+    contraction: f32,
+    parts: BranchParts,
+}
+
+impl Moved {
+    pub(crate) const NONE: Moved = Moved {
+        on: None,
+        load_bits: 0,
+        max_contraction_bits: 0,
+        fraction: 0.0,
+        pressure_mpa: 0.0,
+        contraction: 0.0,
+        parts: BranchParts {
+            cubic: 0.0,
+            offset: 0.0,
+            cubic_slope: 0.0,
+            offset_slope: 0.0,
+        },
+    };
+}
+
+/// One [`Moved`] per stack position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct MovedPoints<const N: usize>([Moved; N]);
+
+impl<const N: usize> Default for MovedPoints<N> {
+    fn default() -> Self {
+        MovedPoints([Moved::NONE; N])
+    }
+}
+
+impl<const N: usize> MovedPoints<N> {
+    /// Position `i` holds another point now.
+    #[inline(always)]
+    pub(crate) fn forget(&mut self, i: usize) {
+        if let Some(m) = self.0.get_mut(i) {
+            m.on = None;
+        }
+    }
+
+    /// The stack dropped its oldest point (every point moved down one).
+    #[inline(always)]
+    fn shift(&mut self) {
+        if N > 1 {
+            self.0.copy_within(1.., 0);
+        }
+    }
+}
+
 impl<const N: usize> ReversalStack<N> {
     /// Remembered reversal points, oldest first.
     pub fn points(&self) -> &[Reversal] {
@@ -287,13 +365,40 @@ impl<const N: usize> ReversalStack<N> {
     /// contraction while the rate law widened the loop around it, and the
     /// memory drove the curve up to 0.03 off the rate law's branches.
     pub fn push_at_scale(&mut self, r: Reversal, offset_scale: f32) {
+        self.push_impl(r, offset_scale, None);
+    }
+
+    /// [`Self::push_at_scale`], keeping `moved` (the [`Moved`] of each
+    /// position) in step.
+    pub(crate) fn push_at_scale_moved(
+        &mut self,
+        r: Reversal,
+        offset_scale: f32,
+        moved: &mut MovedPoints<N>,
+    ) {
+        self.push_impl(r, offset_scale, Some(moved));
+    }
+
+    #[inline(always)]
+    fn push_impl(
+        &mut self,
+        r: Reversal,
+        offset_scale: f32,
+        mut moved: Option<&mut MovedPoints<N>>,
+    ) {
         if !(r.pressure_mpa.is_finite() && r.contraction.is_finite()) || N == 0 {
             return;
         }
         if self.len >= N {
             self.points.copy_within(1.., 0);
             self.scales.copy_within(1.., 0);
+            if let Some(m) = moved.as_deref_mut() {
+                m.shift();
+            }
             self.len = N - 1;
+        }
+        if let Some(m) = moved {
+            m.forget(self.len);
         }
         if let (Some(slot), Some(scale)) =
             (self.points.get_mut(self.len), self.scales.get_mut(self.len))
@@ -310,6 +415,8 @@ impl<const N: usize> ReversalStack<N> {
     /// without a rate law: two loads and a compare). `on` is the branch it
     /// was recorded on, which places it when its own scale was too small to
     /// tell the branches apart.
+    /// `moved`: the feedforward's [`Moved`] per position (with
+    /// [`Ends::Newton`]).
     #[inline(always)]
     fn point_at_scale(
         &self,
@@ -318,13 +425,19 @@ impl<const N: usize> ReversalStack<N> {
         on: Branch,
         offset_scale: f32,
         ends: Ends,
+        moved: Option<&mut MovedPoints<N>>,
     ) -> Option<Reversal> {
         let r = *self.points.get(i)?;
         let recorded = *self.scales.get(i)?;
         if !recorded.is_finite() || recorded.to_bits() == offset_scale.to_bits() {
             return Some(r);
         }
-        Some(rescaled(r, recorded, model, on, offset_scale, ends))
+        match moved.and_then(|m| m.0.get_mut(i)) {
+            Some(m) if ends == Ends::Newton => {
+                Some(moved_newton(m, r, recorded, model, on, offset_scale))
+            }
+            _ => Some(rescaled(r, recorded, model, on, offset_scale, ends)),
+        }
     }
 
     /// The top point and the one below, as they lie at `offset_scale` for
@@ -339,6 +452,7 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
+        moved: Option<&mut MovedPoints<N>>,
     ) -> (Option<Reversal>, Option<Reversal>) {
         let same = |i: Option<usize>| {
             i.and_then(|i| self.scales.get(i))
@@ -347,7 +461,7 @@ impl<const N: usize> ReversalStack<N> {
         if same(self.len.checked_sub(1)) && same(self.len.checked_sub(2)) {
             return self.top2();
         }
-        self.top2_rescaled(model, branch, offset_scale, ends)
+        self.top2_rescaled(model, branch, offset_scale, ends, moved)
     }
 
     /// [`Self::top2_at_scale`]'s path where a point moves.
@@ -358,15 +472,16 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
+        mut moved: Option<&mut MovedPoints<N>>,
     ) -> (Option<Reversal>, Option<Reversal>) {
-        let top = self
-            .len
-            .checked_sub(1)
-            .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
+        let top = self.len.checked_sub(1).and_then(|i| {
+            let on = branch.opposite();
+            self.point_at_scale(i, model, on, offset_scale, ends, moved.as_deref_mut())
+        });
         let below = self
             .len
             .checked_sub(2)
-            .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
+            .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends, moved));
         (top, below)
     }
 
@@ -374,7 +489,20 @@ impl<const N: usize> ReversalStack<N> {
     /// ([`Self::push_at_scale`] on a copy), copying only `other`'s
     /// remembered points: not the whole capacity, nor its cached loop,
     /// which the push forgets.
-    pub(crate) fn set_pushed(&mut self, other: &Self, r: Reversal, offset_scale: f32) {
+    /// `moved` is this stack's [`Moved`] per position, `other_moved`
+    /// `other`'s: valid for the top two positions only (the two a minor
+    /// loop moves; the caller forgets the two a wipe-out exposes, and the
+    /// inverse's look past closed loops does not use them). The point below
+    /// `r`, `other`'s top, brings its own along; `r`'s position is
+    /// forgotten.
+    pub(crate) fn set_pushed_moved(
+        &mut self,
+        other: &Self,
+        r: Reversal,
+        offset_scale: f32,
+        moved: &mut MovedPoints<N>,
+        other_moved: &MovedPoints<N>,
+    ) {
         let len = other.len.min(N);
         for ((to, to_scale), (from, from_scale)) in self
             .points
@@ -386,8 +514,13 @@ impl<const N: usize> ReversalStack<N> {
             *to = *from;
             *to_scale = *from_scale;
         }
+        if let Some(top) = len.checked_sub(1) {
+            if let (Some(to), Some(from)) = (moved.0.get_mut(top), other_moved.0.get(top)) {
+                *to = *from;
+            }
+        }
         self.len = len;
-        self.push_at_scale(r, offset_scale);
+        self.push_impl(r, offset_scale, Some(moved));
     }
 
     /// Whether the top minor loop is cached (then [`Self::contraction`] and
@@ -439,13 +572,15 @@ impl<const N: usize> ReversalStack<N> {
         model: &LoadModel,
         branch: Branch,
         offset_scale: f32,
-    ) -> Option<Segment> {
-        self.segment_with(blend, model, branch, offset_scale, Ends::Exact)
+    ) -> Option<&Segment> {
+        self.segment_with(blend, model, branch, offset_scale, Ends::Exact, None)
     }
 
     /// [`Self::segment`] with the loop's ends solved as `ends` says; with
     /// [`Ends::Newton`] a cached loop that differs only in the offset scale
-    /// moves its ends by one Newton step each.
+    /// moves its ends by one Newton step each. The loop is made in its
+    /// cache and lent from there (a [`Segment`] is a dozen words: copies of
+    /// it in and out cost as much as a Newton step).
     #[inline(always)]
     fn segment_with(
         &mut self,
@@ -454,47 +589,29 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
-    ) -> Option<Segment> {
+        moved: Option<&mut MovedPoints<N>>,
+    ) -> Option<&Segment> {
         let origin_recorded = self.top2().0?;
         let scale_bits = offset_scale.to_bits();
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
-        if let Some(s) = self.segment {
-            if s.branch == branch
-                && s.scale_bits == scale_bits
+        let mut warm = None;
+        if let Some(s) = &self.segment {
+            let same_loop = s.branch == branch
                 && s.load_bits == load_bits
                 && s.max_contraction_bits == max_contraction_bits
-                && s.merge_bits == merge_bits
-            {
-                return Some(s);
+                && s.merge_bits == merge_bits;
+            if same_loop && s.scale_bits == scale_bits {
+                return self.segment.as_ref();
             }
-            if ends == Ends::Newton
-                && s.branch == branch
-                && s.load_bits == load_bits
-                && s.max_contraction_bits == max_contraction_bits
-                && s.merge_bits == merge_bits
-            {
-                let warm = Some((s.b_r, s.b_t));
-                let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends);
-                let origin = origin.unwrap_or(origin_recorded);
-                let s = Segment::new(
-                    blend,
-                    model,
-                    origin,
-                    target,
-                    branch,
-                    offset_scale,
-                    ends,
-                    warm,
-                );
-                self.segment = Some(s);
-                return Some(s);
+            if same_loop && ends == Ends::Newton {
+                warm = Some((s.b_r, s.b_t));
             }
         }
-        let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends);
+        let (origin, target) = self.top2_at_scale(model, branch, offset_scale, ends, moved);
         let origin = origin.unwrap_or(origin_recorded);
-        let s = Segment::new(
+        self.segment = Some(Segment::new(
             blend,
             model,
             origin,
@@ -502,10 +619,9 @@ impl<const N: usize> ReversalStack<N> {
             branch,
             offset_scale,
             ends,
-            None,
-        );
-        self.segment = Some(s);
-        Some(s)
+            warm,
+        ));
+        self.segment.as_ref()
     }
 
     /// Contraction at `pressure_mpa` on `branch` with the memory, after
@@ -588,6 +704,7 @@ impl<const N: usize> ReversalStack<N> {
             branch,
             offset_scale,
             Ends::Exact,
+            None,
         )
     }
 
@@ -616,10 +733,35 @@ impl<const N: usize> ReversalStack<N> {
             branch,
             offset_scale,
             Ends::Newton,
+            None,
         )
     }
 
-    // Inlined into both callers, so each is specialised for its `ends`.
+    /// [`Self::feedforward_pressure_mpa`] with the [`Moved`] of each
+    /// position kept in `moved` between calls (the same result, bit for
+    /// bit; the feedforward's per-period path with a rate law).
+    pub(crate) fn feedforward_pressure_mpa_moved(
+        &mut self,
+        moved: &mut MovedPoints<N>,
+        params: &NonLocalMemory,
+        model: &LoadModel,
+        contraction: f32,
+        branch: Branch,
+        offset_scale: f32,
+    ) -> f32 {
+        self.inverse_impl(
+            params,
+            model,
+            contraction,
+            branch,
+            offset_scale,
+            Ends::Newton,
+            Some(moved),
+        )
+    }
+
+    // Inlined into its callers, so each is specialised for its `ends`.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn inverse_impl(
         &mut self,
@@ -629,6 +771,7 @@ impl<const N: usize> ReversalStack<N> {
         branch: Branch,
         offset_scale: f32,
         ends: Ends,
+        moved: Option<&mut MovedPoints<N>>,
     ) -> f32 {
         let (lo_x, hi_x) = (model.root_contraction(), model.max_contraction());
         let x_ref = clamp(contraction, lo_x, hi_x);
@@ -650,24 +793,27 @@ impl<const N: usize> ReversalStack<N> {
             return branch_pressure_mpa(model, x_ref, branch, offset_scale);
         }
         let blend = params.blend_coeffs();
+        let inner;
         let seg = if len == self.len {
             // The top loop: cached between calls, as for `contraction`.
-            match self.segment_with(blend, model, branch, offset_scale, ends) {
+            match self.segment_with(blend, model, branch, offset_scale, ends, moved) {
                 Some(seg) => seg,
                 None => return branch_pressure_mpa(model, x_ref, branch, offset_scale),
             }
         } else {
             // An inner loop of the stack (the top one closed here).
-            let origin = len
-                .checked_sub(1)
-                .and_then(|i| self.point_at_scale(i, model, branch.opposite(), offset_scale, ends));
+            // (Not with `moved`: valid for the top two positions only.)
+            let origin = len.checked_sub(1).and_then(|i| {
+                let on = branch.opposite();
+                self.point_at_scale(i, model, on, offset_scale, ends, None)
+            });
             let Some(origin) = origin else {
                 return branch_pressure_mpa(model, x_ref, branch, offset_scale);
             };
             let target = len
                 .checked_sub(2)
-                .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends));
-            Segment::new(
+                .and_then(|i| self.point_at_scale(i, model, branch, offset_scale, ends, None));
+            inner = Segment::new(
                 blend,
                 model,
                 origin,
@@ -676,7 +822,8 @@ impl<const N: usize> ReversalStack<N> {
                 offset_scale,
                 ends,
                 None,
-            )
+            );
+            &inner
         };
         if let Some(b) = seg.solve(blend, x_ref) {
             return branch_pressure_mpa(model, clamp(b, lo_x, hi_x), branch, offset_scale);
@@ -761,17 +908,7 @@ fn rescaled(
     offset_scale: f32,
     ends: Ends,
 ) -> Reversal {
-    let recorded = clamp(recorded, 0.0, MAX_OFFSET_SCALE);
-    let offset = recorded * model.offset_mpa(r.contraction);
-    let fraction = if offset.abs() > 1e-9 {
-        clamp(
-            (r.pressure_mpa - model.constraint_pressure_mpa(r.contraction)) / offset,
-            -1.0,
-            1.0,
-        )
-    } else {
-        on.offset_sign()
-    };
+    let fraction = fraction_between_branches(r, recorded, model, on);
     let k = fraction * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     let branch = if k >= 0.0 {
         Branch::Contraction
@@ -783,6 +920,103 @@ fn rescaled(
         pressure_mpa: r.pressure_mpa,
         contraction: if x.is_finite() { x } else { r.contraction },
     }
+}
+
+/// The fraction `φ = (p − CM(x))/(scale·y_hys(x))` of the way between the
+/// branches at which `r` lies, recorded at offset scale `recorded`, in
+/// `[−1, 1]`; `on`'s sign where the offset is too small to tell
+/// ([`rescaled`]).
+#[inline(always)]
+fn fraction_between_branches(r: Reversal, recorded: f32, model: &LoadModel, on: Branch) -> f32 {
+    let (cm, y) = (
+        model.constraint_pressure_mpa(r.contraction),
+        model.offset_mpa(r.contraction),
+    );
+    fraction_from(r, recorded, cm, y, on)
+}
+
+/// [`fraction_between_branches`] given `CM(x)` and `y_hys(x)` at the
+/// point's contraction.
+#[inline(always)]
+fn fraction_from(r: Reversal, recorded: f32, cm: f32, y: f32, on: Branch) -> f32 {
+    let recorded = clamp(recorded, 0.0, MAX_OFFSET_SCALE);
+    let offset = recorded * y;
+    if offset.abs() > 1e-9 {
+        clamp((r.pressure_mpa - cm) / offset, -1.0, 1.0)
+    } else {
+        on.offset_sign()
+    }
+}
+
+/// [`rescaled`] with [`Ends::Newton`], bit for bit, from the point's
+/// [`Moved`] (made here when it was not, or was made on another model):
+/// the one Newton step of [`newton_branch`] from the recorded contraction,
+/// with the model's parts there computed once per point instead of once
+/// per move. Inlined where points move (the per-period path with a rate
+/// law); making `moved` is out of line.
+#[inline(always)]
+fn moved_newton(
+    moved: &mut Moved,
+    r: Reversal,
+    recorded: f32,
+    model: &LoadModel,
+    on: Branch,
+    offset_scale: f32,
+) -> Reversal {
+    let (lo, hi) = (model.root_contraction(), model.max_contraction());
+    let (load_bits, max_contraction_bits) =
+        (model.load_n().to_bits(), model.max_contraction().to_bits());
+    // Field by field: `==` on an `Option` of a tuple is a library call.
+    let made = matches!(moved.on, Some(b) if b == on)
+        && moved.load_bits == load_bits
+        && moved.max_contraction_bits == max_contraction_bits;
+    if !made {
+        make_moved(moved, r, recorded, model, on);
+    }
+    let k = moved.fraction * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
+    if k.abs() == 1.0 {
+        // `Ends::solve` inverts a scale of exactly 1 exactly (rare).
+        return rescaled(r, recorded, model, on, offset_scale, Ends::Newton);
+    }
+    // `newton_branch(model, p, branch, |k|, x0, 1)` for the branch of
+    // `k`'s sign, with its evaluation at `x0` from `moved`. Its factor
+    // `sign·clamp(|k|, 0, MAX_OFFSET_SCALE)` is `k` itself (`|φ| <= 1`, the
+    // scale clamped to `[0, MAX_OFFSET_SCALE]`), but +0 for −0.
+    let k = if k == 0.0 { 0.0 } else { k };
+    let (g, slope) = moved.parts.at(k);
+    let x = if slope > 0.0 {
+        clamp(moved.contraction - (g - moved.pressure_mpa) / slope, lo, hi)
+    } else {
+        moved.contraction
+    };
+    Reversal {
+        pressure_mpa: r.pressure_mpa,
+        contraction: if x.is_finite() { x } else { r.contraction },
+    }
+}
+
+/// [`Moved`] for `r`, recorded at `recorded` on `on`, on `model`.
+#[inline(never)]
+fn make_moved(moved: &mut Moved, r: Reversal, recorded: f32, model: &LoadModel, on: Branch) {
+    let x = clamp(
+        r.contraction,
+        model.root_contraction(),
+        model.max_contraction(),
+    );
+    // `CM` and `y_hys` at the contraction clamped to the stroke are the
+    // fraction's at the point's own, bit for bit: `constraint_pressure_mpa`
+    // clamps the same way, and `offset_mpa` is 0 outside the stroke as at
+    // its ends (NaN → `R_i`: 0 there too).
+    let parts = model.branch_parts(x);
+    *moved = Moved {
+        on: Some(on),
+        load_bits: model.load_n().to_bits(),
+        max_contraction_bits: model.max_contraction().to_bits(),
+        fraction: fraction_from(r, recorded, parts.cubic, parts.offset, on),
+        pressure_mpa: clamp(r.pressure_mpa, 0.0, model.max_pressure_mpa()),
+        contraction: x,
+        parts,
+    };
 }
 
 impl Segment {
@@ -804,30 +1038,57 @@ impl Segment {
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
-        let end = |p: f32, x0: Option<f32>| ends.solve(model, p, branch, offset_scale, x0);
-        let b_r = end(origin.pressure_mpa, warm.map(|w| w.0));
-        let (b_t, d_t) = match target {
-            Some(t) => {
-                let b_t = end(t.pressure_mpa, warm.map(|w| w.1));
-                (b_t, t.contraction - b_t)
-            }
+        let p_t = match target {
+            Some(t) => t.pressure_mpa,
             // The first reversal's curve closes on the end of the major loop.
-            None => {
-                let p_end = match branch {
-                    Branch::Contraction => model.max_pressure_mpa(),
-                    Branch::Expansion => 0.0,
-                };
-                (end(p_end, warm.map(|w| w.1)), 0.0)
+            None => match branch {
+                Branch::Contraction => model.max_pressure_mpa(),
+                Branch::Expansion => 0.0,
+            },
+        };
+        let (b_r, b_t) = match warm {
+            // The cached loop at another scale (the per-period path with a
+            // rate law): one Newton step for each end, `Ends::solve`'s
+            // `newton_branch(.., 1)` with what the two share computed once.
+            Some((w_r, w_t)) if ends == Ends::Newton && offset_scale != 1.0 => newton_ends(
+                model,
+                [origin.pressure_mpa, p_t],
+                branch,
+                offset_scale,
+                [w_r, w_t],
+            ),
+            _ => {
+                let end = |p: f32, x0: Option<f32>| ends.solve(model, p, branch, offset_scale, x0);
+                (
+                    end(origin.pressure_mpa, warm.map(|w| w.0)),
+                    end(p_t, warm.map(|w| w.1)),
+                )
             }
+        };
+        let d_t = match target {
+            Some(t) => t.contraction - b_t,
+            None => 0.0,
         };
         let span = b_r - b_t;
         let degenerate = !(span.abs() > 1e-6);
         let inv_progress = if degenerate {
             0.0
         } else if span > 0.0 {
-            (1.0 / span).max(blend.inv_merge)
+            // `f32::max`/`min` without their NaN handling (a library call
+            // on the M4F): `1/span` is not NaN here, `inv_merge` finite.
+            let inv = 1.0 / span;
+            if inv >= blend.inv_merge {
+                inv
+            } else {
+                blend.inv_merge
+            }
         } else {
-            (1.0 / span).min(-blend.inv_merge)
+            let inv = 1.0 / span;
+            if inv <= -blend.inv_merge {
+                inv
+            } else {
+                -blend.inv_merge
+            }
         };
         let wipe_sign = match branch {
             Branch::Contraction => 1.0,
@@ -900,9 +1161,8 @@ impl Segment {
         let qa = m;
         let qb = k - m + i * self.d_rt - i * c * m;
         let qc = -k * (1.0 + i * c);
-        let mut roots = [f32::NAN; 2];
-        if qa.abs() < 1e-6 {
-            roots[0] = -qc / qb;
+        let (first, second) = if qa.abs() < 1e-6 {
+            (-qc / qb, f32::NAN)
         } else {
             let disc = qb * qb - 4.0 * qa * qc;
             if !(disc >= 0.0) {
@@ -910,13 +1170,16 @@ impl Segment {
             }
             let root = crate::math::sqrt(disc);
             let q = -0.5 * (qb + if qb >= 0.0 { root } else { -root });
-            roots = [q / qa, qc / q];
-        }
-        roots
-            .into_iter()
-            .filter(|s| (-1e-6..=1.0 + 1e-6).contains(s))
-            .map(|s| self.b_r + (s - 1.0) / i)
-            .find(|&b| fits(b))
+            (q / qa, qc / q)
+        };
+        // The first root in `[0, 1]` (a NaN one is not) whose `B` checks
+        // out, in that order (two candidates written out: an iterator over
+        // them costs a few dozen instructions more on the M4F).
+        let candidate = |s: f32| {
+            let b = self.b_r + (s - 1.0) / i;
+            ((-1e-6..=1.0 + 1e-6).contains(&s) && fits(b)).then_some(b)
+        };
+        candidate(first).or_else(|| candidate(second))
     }
 }
 
@@ -979,6 +1242,35 @@ fn newton_branch(
     x
 }
 
+/// [`newton_branch`] with one step from each of `x0` at each of
+/// `pressures_mpa`, bit for bit: the pressure clamp's bound, the factor on
+/// the offset and the stroke computed once for both.
+#[inline(always)]
+fn newton_ends(
+    model: &LoadModel,
+    pressures_mpa: [f32; 2],
+    branch: Branch,
+    offset_scale: f32,
+    x0: [f32; 2],
+) -> (f32, f32) {
+    let pmax = model.max_pressure_mpa();
+    let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
+    let (lo, hi) = (model.root_contraction(), model.max_contraction());
+    let step = |p: f32, x0: f32| {
+        let p = clamp(p, 0.0, pmax);
+        let x = clamp(x0, lo, hi);
+        let (g, slope) = model.branch_and_slope(x, k);
+        if slope > 0.0 {
+            clamp(x - (g - p) / slope, lo, hi)
+        } else {
+            x
+        }
+    };
+    let [p_r, p_t] = pressures_mpa;
+    let [x_r, x_t] = x0;
+    (step(p_r, x_r), step(p_t, x_t))
+}
+
 /// The threshold `θ` of the wiping-out test for the point `target` below the
 /// top on `branch`: wiped out when `p > θ` rising, `p < θ` falling, for a
 /// finite unclamped `p`.
@@ -1036,6 +1328,116 @@ mod tests {
         }
         assert!(worst[0] < 1e-4, "{worst:?}");
         assert!(worst[1] < 2e-3, "{worst:?}");
+    }
+
+    #[test]
+    fn a_moved_point_is_the_rescaled_one_bit_for_bit() {
+        let c = Coeffs::new(Params::DEFAULT).unwrap();
+        for load in [100.0f32, 250.0, 600.0] {
+            let m = c.load_model(load).unwrap();
+            let pmax = m.max_pressure_mpa();
+            for br in [Branch::Contraction, Branch::Expansion] {
+                for i in 0..=40 {
+                    let p = pmax * (i as f32 / 40.0) - 0.01;
+                    for recorded in [0.0f32, 0.5, 1.0, 1.7, 4.0] {
+                        let x_branch = branch_contraction(&m, p, br, recorded.max(0.1));
+                        for dx in [-0.02f32, 0.0, 0.003, 0.05] {
+                            let r = Reversal {
+                                pressure_mpa: p,
+                                contraction: x_branch + dx,
+                            };
+                            let mut moved = Moved::NONE;
+                            for scale in [0.0f32, 0.3, 0.99, 1.0, 1.01, 2.5, 4.0, 7.0] {
+                                for on in [Branch::Contraction, Branch::Expansion] {
+                                    let want = rescaled(r, recorded, &m, on, scale, Ends::Newton);
+                                    let got = moved_newton(&mut moved, r, recorded, &m, on, scale);
+                                    assert_eq!(
+                                        (got.pressure_mpa.to_bits(), got.contraction.to_bits()),
+                                        (want.pressure_mpa.to_bits(), want.contraction.to_bits()),
+                                        "{load} {br:?} {p} {recorded} {dx} {scale} {on:?}"
+                                    );
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_feedforward_with_moved_points_is_the_one_without_bit_for_bit() {
+        // A random walk of the feedforward's stack operations (pushes, a
+        // trial made from the memory and flipped in, wipe-outs) at offset
+        // scales that change every call: the inverse with `MovedPoints`
+        // kept between calls against the one that moves every point afresh.
+        let m = model();
+        let mem = NonLocalMemory::with_shape(0.7);
+        let mut seed = 12345u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let (lo, hi) = (m.root_contraction(), m.max_contraction());
+        let mut stacks = [ReversalStack::<4>::default(); 2];
+        let mut moved = [MovedPoints::<4>::default(); 2];
+        let mut plain = ReversalStack::<4>::default();
+        let mut current = 0;
+        let mut branch = Branch::Contraction;
+        for k in 0..20_000 {
+            let scale = 0.6 + 1.5 * next();
+            let x = lo + (hi - lo) * next();
+            let r = Reversal {
+                pressure_mpa: m.max_pressure_mpa() * next(),
+                contraction: x,
+            };
+            match (next() * 8.0) as u32 {
+                0 => {
+                    stacks[current].push_at_scale_moved(r, scale, &mut moved[current]);
+                    plain.push_at_scale(r, scale);
+                    branch = branch.opposite();
+                }
+                1 => {
+                    // The trial: the memory with `r` pushed, then flipped in.
+                    let (a, b) = stacks.split_at_mut(1);
+                    let (ma, mb) = moved.split_at_mut(1);
+                    if current == 0 {
+                        b[0].set_pushed_moved(&a[0], r, scale, &mut mb[0], &ma[0]);
+                    } else {
+                        a[0].set_pushed_moved(&b[0], r, scale, &mut ma[0], &mb[0]);
+                    }
+                    current = 1 - current;
+                    plain.push_at_scale(r, scale);
+                    branch = branch.opposite();
+                }
+                2 => {
+                    let before = stacks[current].points().len();
+                    stacks[current].wipe_out(r.pressure_mpa, branch);
+                    plain.wipe_out(r.pressure_mpa, branch);
+                    let after = stacks[current].points().len();
+                    if after < before {
+                        if let Some(i) = after.checked_sub(1) {
+                            moved[current].forget(i);
+                        }
+                        if let Some(i) = after.checked_sub(2) {
+                            moved[current].forget(i);
+                        }
+                    }
+                }
+                _ => {}
+            }
+            assert_eq!(stacks[current].points(), plain.points(), "{k}");
+            let want = plain.feedforward_pressure_mpa(&mem, &m, x, branch, scale);
+            let got = stacks[current].feedforward_pressure_mpa_moved(
+                &mut moved[current],
+                &mem,
+                &m,
+                x,
+                branch,
+                scale,
+            );
+            assert_eq!(got.to_bits(), want.to_bits(), "{k}");
+        }
     }
 
     fn model() -> LoadModel {

@@ -128,7 +128,9 @@ fn scaled_branch_contraction(
     // puts the crossing (while a load switch still builds them, the
     // stroke's middle: their fallback is itself a bisection).
     let start = if model.inverse_ready() {
-        clamp(model.contraction(p, branch), lo, hi)
+        // The tables' interpolation without their Newton step: the
+        // iteration's first step does that work on the scaled branch.
+        clamp(model.contraction_interpolated(p, branch), lo, hi)
     } else {
         0.5 * (lo + hi)
     };
@@ -152,7 +154,15 @@ fn newton_inverse(
     let (mut lo, mut hi) = (model.root_contraction(), model.max_contraction());
     // 2⁻²⁴ of the stroke, or two `f32` steps of the contraction where
     // that is coarser (a Newton step at the answer is rounding).
-    let resolution = ((hi - lo) * SCALED_INVERSE_RESOLUTION).max(2.0 * f32::EPSILON * hi);
+    // (`f32::max` without its NaN handling, a library call on the M4F:
+    // both are finite for a validated model.)
+    let stroke_resolution = (hi - lo) * SCALED_INVERSE_RESOLUTION;
+    let f32_resolution = 2.0 * f32::EPSILON * hi;
+    let resolution = if stroke_resolution >= f32_resolution {
+        stroke_resolution
+    } else {
+        f32_resolution
+    };
     let mut x = start;
     let rounding = SCALED_INVERSE_ROUNDING * model.max_pressure_mpa();
     let mut step_before = hi - lo;
