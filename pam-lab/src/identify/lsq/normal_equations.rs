@@ -44,7 +44,7 @@ const MAX_DAMPING: f64 = 1e16;
 /// within `limits`, each step from the normal equations. A trial point
 /// whose residuals are not all finite is a refused step (with
 /// [`super::NonFinite::Refuse`] too). `limits.first_step` is not used: the
-/// first damping is [`FIRST_DAMPING`].
+/// first damping is `FIRST_DAMPING`, `10⁻³` of each column's own scale.
 pub fn minimize_normal(
     problem: &Residuals<'_>,
     theta0: &[f64],
