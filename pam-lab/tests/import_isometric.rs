@@ -309,6 +309,30 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
     // decoder takes its blob.
     let blob = std::fs::read(diag.join("model.blob")).unwrap();
     assert!(pam_core::blob::decode_model(&blob).is_ok());
+    // Its static model is the one `pam-lab fit` writes with the same
+    // options, the stroke ends' shifts included (a check that took a
+    // shape with shifts for another variant wrote the diagnosis's own
+    // training-part model instead: Festo 40 cm, test 10, 1.50x the
+    // reference surface against fit's 1.08x).
+    assert!(
+        stdout.contains("the model written is the static model `pam-lab fit"),
+        "{stdout}"
+    );
+    let fit_dir = dir.path().join("fit");
+    let (ok, fit_stdout, stderr) = pam_lab(&[
+        "fit",
+        out.join("train.csv").to_str().unwrap(),
+        "--no-plot",
+        "-o",
+        fit_dir.to_str().unwrap(),
+    ]);
+    assert!(ok, "{fit_stdout}{stderr}");
+    let model_json = |d: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("model.json")).unwrap()).unwrap()
+    };
+    let (fitted, diagnosed) = (model_json(&fit_dir), model_json(&diag));
+    assert_eq!(diagnosed["params"], fitted["params"]);
+    assert_eq!(diagnosed["effects"]["shape"], fitted["effects"]["shape"]);
     // Its plots, in pressure (residual.png) and pressure against force
     // (loops.png).
     for png in ["residual.png", "loops.png"] {

@@ -445,14 +445,10 @@ fn diagnose_beside(
     // held-out 0.0175 MPa against 0.0140); so do the path's dynamic
     // effects fitted on fit's static model of the training part
     // (`static_kept.rs`).
+    // The table variant is the one with a stroke table (the correction
+    // alone has none); fit's static shape also shifts the stroke's ends.
     let table_only = setup.stroke_table.is_some()
-        && current.shape.is_some_and(|s| {
-            !s.table.is_neutral()
-                && s == pam_core::effects::ConstraintShape {
-                    table: s.table,
-                    ..pam_core::effects::ConstraintShape::NEUTRAL
-                }
-        })
+        && current.shape.is_some_and(|s| !s.table.is_neutral())
         && (static_stays
             || current
                 == Effects {
