@@ -4,19 +4,32 @@
 
 use std::{env, error::Error, fs, path::PathBuf};
 
+/// The Preisach blob's size the images boot: `firmware::controller::preisach`'s
+/// `PREISACH_ROWS` and `PREISACH_LOADS` (a build script cannot use its own
+/// crate; the region's length ties them: see `firmware::BLOB_REGION_LEN`).
+const PREISACH_ROWS: usize = 16;
+const PREISACH_LOADS: usize = 6;
+
 fn main() -> Result<(), Box<dyn Error>> {
     let out = PathBuf::from(env::var_os("OUT_DIR").ok_or("OUT_DIR not set")?);
     let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").ok_or("no manifest dir")?);
 
-    // The blob: a file from `pam-lab fit` if PAM_COEFFS_BLOB names one (checked
-    // here so a bad file fails the build, not the boot), else pam-core's
-    // encoding of its default parameters.
+    // The blob: a file from `pam-lab fit`, `diagnose` or `compare` (its
+    // `preisach.blob`) if PAM_COEFFS_BLOB names one (checked here so a bad
+    // file fails the build, not the boot), else pam-core's encoding of its
+    // default parameters.
     println!("cargo:rerun-if-env-changed=PAM_COEFFS_BLOB");
     let mut blob = match env::var_os("PAM_COEFFS_BLOB") {
         Some(path) => {
             let bytes = fs::read(&path)?;
-            pam_core::blob::decode_model(&bytes)
-                .map_err(|e| format!("PAM_COEFFS_BLOB {}: {e}", path.to_string_lossy()))?;
+            let checked =
+                if bytes.get(..4) == Some(&pam_core::preisach::blob::PREISACH_BLOB_MAGIC[..]) {
+                    pam_core::preisach::blob::decode::<PREISACH_ROWS, PREISACH_LOADS>(&bytes)
+                        .map(|_| ())
+                } else {
+                    pam_core::blob::decode_model(&bytes).map(|_| ())
+                };
+            checked.map_err(|e| format!("PAM_COEFFS_BLOB {}: {e}", path.to_string_lossy()))?;
             println!("cargo:rerun-if-changed={}", path.to_string_lossy());
             bytes
         }
@@ -71,16 +84,22 @@ fn main() -> Result<(), Box<dyn Error>> {
         // One bit of one parameter flipped: the CRC check must refuse it at boot.
         blob[20] ^= 0x01;
     }
-    if blob.len() > pam_core::blob::MAX_BLOB_LEN {
+    // The flash region holds the longest blob the images boot
+    // (`firmware::BLOB_REGION_LEN`, which must be this length: the image's
+    // array has no other size); a shorter one is followed by erased flash
+    // (0xFF), its header giving its length.
+    let region_len = pam_core::blob::MAX_BLOB_LEN.max(pam_core::preisach::blob::blob_len(
+        PREISACH_ROWS,
+        PREISACH_LOADS,
+    ));
+    if blob.len() > region_len {
         return Err(format!(
-            "coefficient blob of {} bytes is longer than any version",
+            "blob of {} bytes is longer than the flash region ({region_len} bytes)",
             blob.len()
         )
         .into());
     }
-    // The flash region holds the longest blob of any version; a shorter one
-    // is followed by erased flash (0xFF), its header giving its length.
-    blob.resize(pam_core::blob::MAX_BLOB_LEN, 0xFF);
+    blob.resize(region_len, 0xFF);
     fs::write(out.join("coeffs.bin"), &blob)?;
 
     let bare_metal = env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "none");

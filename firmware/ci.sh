@@ -107,6 +107,37 @@ if ! grep -qE "blob accepted \([0-9]+ bytes, version [2-5], non-local memory, co
   exit 1
 fi
 
+# A `compare` run writes the Preisach blob (`PAMP`) the self-test boots with
+# and runs: the Preisach model of the same example rig, so again no
+# tracking bound; it must be accepted as a Preisach model, catch the fault
+# in the same step and track better than the PI alone. One bit of it
+# flipped (feature qemu-bad-blob flips byte 20 after build.rs checked it)
+# must be refused at boot.
+echo "== firmware: pam-lab compare -> preisach.blob -> QEMU run"
+cmp_dir=$target_dir/ci-compare
+rm -rf "$cmp_dir"
+cargo run --release -q -p pam-lab -- compare examples/reference.csv -o "$cmp_dir" --no-plot --quiet
+out=$(PAM_COEFFS_BLOB="$cmp_dir/preisach.blob" timeout 300 cargo fw-qemu 2>&1 || true)
+echo "$out" | grep -E "blob accepted|max \|error\||fault caught|PASS|FAIL" || true
+ff=$(max_of "Preisach feedforward")
+pi=$(max_of "no feedforward")
+if ! grep -qE "Preisach blob accepted \([0-9]+ bytes, version 1, 16 x 16 relay rows at 6 loads\)" <<<"$out" \
+  || ! grep -q "fault caught in the same step: true" <<<"$out" \
+  || [ -z "$ff" ] || [ -z "$pi" ] \
+  || ! awk -v ff="$ff" -v pi="$pi" 'BEGIN { exit !(ff < pi) }'; then
+  echo "firmware: the Preisach blob did not boot, catch the fault and beat the PI alone" >&2
+  exit 1
+fi
+set +e
+out=$(PAM_COEFFS_BLOB="$cmp_dir/preisach.blob" timeout 300 cargo fw-qemu-bad-blob 2>&1)
+status=$?
+set -e
+echo "$out" | tail -n 1
+if [ "$status" -eq 0 ] || ! grep -q "blob refused" <<<"$out"; then
+  echo "firmware: the corrupt Preisach blob was not refused (exit $status)" >&2
+  exit 1
+fi
+
 echo "== firmware: QEMU, the self-test with the online adaptation on (feature adapt)"
 out=$(timeout 300 cargo fw-qemu --features adapt 2>&1)
 echo "$out" | grep -E "hysteresis feedforward:|run-pass" | tail -n 3

@@ -1,6 +1,12 @@
-//! Boot: a coefficient blob decoded once into the controller that runs its model.
+//! Boot: a blob decoded once into the controller that runs its model: the
+//! paper model's coefficient blob (`PAMC`, versions 1–4) or a Preisach
+//! blob (`PAMP`, [`pam_core::preisach::blob`]), told apart by the magic.
 
-use crate::controller::{ConfigError, Controller, ControllerConfig, Feedforward};
+use crate::controller::preisach::{PREISACH_LOADS, PREISACH_ROWS};
+use crate::controller::{
+    ConfigError, Controller, ControllerConfig, Feedforward, ModelLimits, Setting,
+};
+use pam_core::preisach::blob::PREISACH_BLOB_MAGIC;
 use pam_core::{Coeffs, Effects};
 
 /// A controller booted from a blob, and what boot learnt on the way.
@@ -8,7 +14,8 @@ use pam_core::{Coeffs, Effects};
 pub struct Booted {
     /// The controller, with the feedforward that runs the blob's model.
     pub controller: Controller,
-    /// The validated effects the blob carries ([`Effects::NONE`] for version 1).
+    /// The validated effects the blob carries ([`Effects::NONE`] for version 1
+    /// and for a Preisach blob).
     pub effects: Effects,
     /// The load the tracker started at, N (before the tracker's clamp to
     /// the calibrated range).
@@ -54,13 +61,17 @@ impl core::error::Error for BootError {}
 /// one path from blob bytes to a [`Controller`] (the board controller, the
 /// self-test image, [`Controller::from_blob`] and host-sim's boot checks).
 /// The blob must pass magic, version, length and CRC-32, then the
-/// validation of its effects and parameters; no allocation, no panic.
+/// validation of its effects and parameters (a Preisach blob: pam-core's
+/// [`decode`](pam_core::preisach::blob::decode) of a 16-row table at 6
+/// loads, which validates the table); no allocation, no panic.
 ///
 /// `config.feedforward` is replaced by the one the blob's model asks for
-/// (the rules of [`model_from_blob`]);
-/// `initial_load_n` is called once, after the blob passed, with its
-/// coefficients (a board reads its load cell here and falls back to the
-/// calibrated range on a failed read).
+/// (the rules of [`model_from_blob`]; a Preisach blob turns every model
+/// feedforward into [`Feedforward::Preisach`], keeps [`Feedforward::Off`]
+/// and refuses [`Feedforward::Constraint`], which it has no model for);
+/// `initial_load_n` is called once, after the blob passed, with the
+/// model's calibrated range (a board reads its load cell here and falls
+/// back to the lightest calibrated load on a failed read).
 ///
 /// ```
 /// use firmware::boot::{boot, BootError};
@@ -73,7 +84,7 @@ impl core::error::Error for BootError {}
 /// };
 /// let blob = pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects);
 /// // The tracker starts at the lightest calibrated load.
-/// let booted = boot(&blob, ControllerConfig::DEFAULT, |c| c.params().min_load_n).unwrap();
+/// let booted = boot(&blob, ControllerConfig::DEFAULT, |limits| limits.min_load_n).unwrap();
 /// assert_eq!(booted.effects, effects);
 /// assert_eq!(booted.controller.config().feedforward, Feedforward::HysteresisEffects(effects));
 /// // One flipped bit: the blob is refused before any controller is built.
@@ -84,11 +95,14 @@ impl core::error::Error for BootError {}
 pub fn boot(
     blob: &[u8],
     config: ControllerConfig,
-    initial_load_n: impl FnOnce(&Coeffs) -> f32,
+    initial_load_n: impl FnOnce(&ModelLimits) -> f32,
 ) -> Result<Booted, BootError> {
+    if blob.get(..4) == Some(&PREISACH_BLOB_MAGIC[..]) {
+        return boot_preisach(blob, config, initial_load_n);
+    }
     let (coeffs, effects) = decode(blob).map_err(BootError::Blob)?;
     let feedforward = feedforward_for(&effects, config.feedforward);
-    let load_n = initial_load_n(&coeffs);
+    let load_n = initial_load_n(&ModelLimits::of_coeffs(&coeffs));
     let controller = Controller::new(
         coeffs,
         ControllerConfig {
@@ -101,6 +115,44 @@ pub fn boot(
     Ok(Booted {
         controller,
         effects,
+        initial_load_n: load_n,
+    })
+}
+
+/// [`boot`] for a Preisach blob: pam-core's decoder (framing, the reader's
+/// size, CRC-32, the table's validation), then the controller that runs
+/// [`Feedforward::Preisach`] (or the PI alone, [`Feedforward::Off`]).
+fn boot_preisach(
+    blob: &[u8],
+    config: ControllerConfig,
+    initial_load_n: impl FnOnce(&ModelLimits) -> f32,
+) -> Result<Booted, BootError> {
+    let table = pam_core::preisach::blob::decode::<PREISACH_ROWS, PREISACH_LOADS>(blob)
+        .map_err(|e| BootError::Blob(ConfigError::Coefficients(e)))?;
+    let feedforward = match config.feedforward {
+        Feedforward::Off => Feedforward::Off,
+        // The comparison mode of the paper's constraint model alone: a
+        // Preisach model has none.
+        Feedforward::Constraint => {
+            return Err(BootError::Controller(ConfigError::Invalid(
+                Setting::FeedforwardModel,
+            )))
+        }
+        _ => Feedforward::Preisach,
+    };
+    let load_n = initial_load_n(&ModelLimits::of_preisach(&table));
+    let controller = Controller::new_preisach(
+        table,
+        ControllerConfig {
+            feedforward,
+            ..config
+        },
+        load_n,
+    )
+    .map_err(BootError::Controller)?;
+    Ok(Booted {
+        controller,
+        effects: Effects::NONE,
         initial_load_n: load_n,
     })
 }
@@ -222,7 +274,7 @@ mod tests {
         ] {
             let b = boot(&blob, ControllerConfig::DEFAULT, |_| 200.0).unwrap();
             let (coeffs, ff) = model_from_blob(&blob, Feedforward::Hysteresis).unwrap();
-            assert_eq!(b.controller.coeffs().params(), coeffs.params());
+            assert_eq!(b.controller.coeffs().unwrap().params(), coeffs.params());
             assert_eq!(b.controller.config().feedforward, ff);
             assert_eq!(b.initial_load_n, 200.0);
             let c = Controller::from_blob(&blob, ControllerConfig::DEFAULT, 200.0).unwrap();
@@ -256,7 +308,7 @@ mod tests {
         );
         // The lightest calibrated load, from the decoded coefficients.
         let good = pam_core::blob::encode(&Params::DEFAULT);
-        let b = boot(&good, ControllerConfig::DEFAULT, |c| c.params().min_load_n).unwrap();
+        let b = boot(&good, ControllerConfig::DEFAULT, |l| l.min_load_n).unwrap();
         assert_eq!(b.initial_load_n, Params::DEFAULT.min_load_n);
     }
 

@@ -49,7 +49,21 @@ pub mod sim_io;
 #[cfg(all(target_os = "none", feature = "chip"))]
 pub mod board;
 
-/// The coefficient blob the images carry, placed by `memory.x` at the start
+/// Bytes of the blob region in flash: the longest blob the images boot,
+/// the paper model's of any version or a Preisach blob of the flashed size
+/// ([`controller::preisach::PREISACH_BLOB_LEN`]). `build.rs` writes the
+/// region at this length (the array below has no other size).
+pub const BLOB_REGION_LEN: usize = {
+    let paper = pam_core::blob::MAX_BLOB_LEN;
+    let preisach = controller::preisach::PREISACH_BLOB_LEN;
+    if paper > preisach {
+        paper
+    } else {
+        preisach
+    }
+};
+
+/// The blob the images carry, placed by `memory.x` at the start
 /// of the COEFFS flash sector (0x080E0000) so it can be rewritten on its
 /// own (`probe-rs download --base-address 0x080E0000`).
 // `link_section` is flagged by the `unsafe_code` lint; placing read-only
@@ -58,18 +72,26 @@ pub mod board;
 #[allow(unsafe_code)]
 #[used]
 #[link_section = ".pam_coeffs"]
-pub static COEFFS_BLOB: [u8; pam_core::blob::MAX_BLOB_LEN] =
+pub static COEFFS_BLOB: [u8; BLOB_REGION_LEN] =
     *include_bytes!(concat!(env!("OUT_DIR"), "/coeffs.bin"));
 
 /// The blob in flash, read at run time: `black_box` keeps the compiler from
 /// folding the build-time bytes, so a rewritten sector takes effect. The
-/// region holds the longest blob of any version; a shorter one (version 1)
-/// is followed by erased bytes, and the header's length says where it ends
+/// region holds the longest blob the images boot; a shorter one is
+/// followed by erased bytes, and the header's length says where it ends
 /// (no blob header: the whole region, which the decoder refuses).
 #[cfg(all(target_os = "none", feature = "rt"))]
 pub fn coeffs_blob() -> &'static [u8] {
-    let region: &'static [u8] = core::hint::black_box(&COEFFS_BLOB);
-    match pam_core::blob::framed_len(region) {
+    framed_blob(core::hint::black_box(&COEFFS_BLOB))
+}
+
+/// The blob framed at the start of a flash region: the paper model's
+/// (`PAMC`) or a Preisach blob (`PAMP`), as its header's length says; the
+/// whole region when neither header is there (the decoder refuses it).
+pub fn framed_blob(region: &[u8]) -> &[u8] {
+    let len =
+        pam_core::blob::framed_len(region).or_else(|| pam_core::preisach::blob::framed_len(region));
+    match len {
         Some(len) => region.get(..len).unwrap_or(region),
         None => region,
     }

@@ -135,9 +135,9 @@ fn main() -> ! {
     // The tracker starts at the measured load (clamped to the calibrated
     // range); a failed read starts it at the lightest load, and the first
     // step reports the fault. The load is read only once the blob passed.
-    let booted = firmware::boot::boot(blob, config, |coeffs| match board.io.load.read_load_n() {
+    let booted = firmware::boot::boot(blob, config, |limits| match board.io.load.read_load_n() {
         Ok(l) if l.is_finite() => l,
-        _ => coeffs.params().min_load_n,
+        _ => limits.min_load_n,
     });
     let (mut ctl, load_n) = match booted {
         // A model with effects runs the feedforward that inverts them.
@@ -157,11 +157,16 @@ fn main() -> ! {
         }
     };
     defmt::info!(
-        "boot: coefficient blob accepted ({} bytes), load {} N",
+        "boot: {} blob accepted ({} bytes), load {} N",
+        if ctl.preisach().is_some() {
+            "Preisach"
+        } else {
+            "coefficient"
+        },
         blob.len(),
         load_n
     );
-    let pmax_mpa = ctl.coeffs().params().points.max_pressure_mpa;
+    let pmax_mpa = ctl.model_limits().max_pressure_mpa;
     let limit_mpa = ctl.config().safety.max_command_mpa;
     if limit_mpa < pmax_mpa {
         // The model's loop closes above what the hardware may be

@@ -25,6 +25,10 @@ pub enum Mode {
     /// model with the effects the diagnosis added, as the firmware's
     /// feedforward runs it ([`crate::end_to_end`]).
     DiagnosedFeedforwardPi,
+    /// The controller booted from a Preisach blob (`PAMP`) identified on
+    /// the characterisation record ([`crate::preisach`]): the firmware's
+    /// [`Feedforward::Preisach`].
+    PreisachFeedforwardPi,
     /// PI feedback alone: the same controller, model and gains with
     /// [`Feedforward::Off`], and the integrator limit raised to
     /// [`PI_ONLY_INTEGRAL_LIMIT_MPA`] so that PI can reach the whole
@@ -35,10 +39,11 @@ pub enum Mode {
 
 impl Mode {
     /// Every mode.
-    pub const ALL: [Mode; 4] = [
+    pub const ALL: [Mode; 5] = [
         Mode::FeedforwardPi,
         Mode::FeedforwardMemoryPi,
         Mode::DiagnosedFeedforwardPi,
+        Mode::PreisachFeedforwardPi,
         Mode::PiOnly,
     ];
 }
@@ -50,6 +55,7 @@ impl Mode {
             Mode::FeedforwardPi => "FF+PI",
             Mode::FeedforwardMemoryPi => "FF(mem)+PI",
             Mode::DiagnosedFeedforwardPi => "FF(diag)+PI",
+            Mode::PreisachFeedforwardPi => "FF(Preisach)+PI",
             Mode::PiOnly => "PI",
         }
     }
@@ -202,6 +208,7 @@ pub fn controller_config(mode: Mode, cfg: &BenchConfig) -> ControllerConfig {
     match mode {
         Mode::FeedforwardPi | Mode::DiagnosedFeedforwardPi => {}
         Mode::FeedforwardMemoryPi => c.feedforward = Feedforward::HysteresisMemory(MEMORY),
+        Mode::PreisachFeedforwardPi => c.feedforward = Feedforward::Preisach,
         Mode::PiOnly => {
             c.feedforward = Feedforward::Off;
             c.integral_limit_mpa = PI_ONLY_INTEGRAL_LIMIT_MPA;
@@ -222,6 +229,29 @@ pub fn run(scenario: &Scenario, mode: Mode, cfg: &BenchConfig) -> Run {
     let coeffs = Coeffs::new(cfg.params).expect("bench parameters");
     let ctl = Controller::new(coeffs, ctl_cfg, load0 as f32).expect("controller config");
     run_controller(scenario, rig, ctl, mode, cfg.warmup_s)
+}
+
+/// Run `scenario` on the reference rig with the controller booted from
+/// `blob` through the firmware's boot path ([`firmware::boot::boot`]) with
+/// `mode`'s configuration, the model at the scenario's first load; the
+/// reason when the firmware refuses the blob.
+pub fn run_booted(
+    scenario: &Scenario,
+    blob: &[u8],
+    mode: Mode,
+    cfg: &BenchConfig,
+) -> Result<Run, String> {
+    let load0 = scenario.load_at(0.0);
+    let booted = firmware::boot::boot(blob, controller_config(mode, cfg), |_| load0 as f32)
+        .map_err(|e| format!("boot refused the blob: {e}"))?;
+    let rig = Rig::reference(load0, cfg.seed);
+    Ok(run_controller(
+        scenario,
+        rig,
+        booted.controller,
+        mode,
+        cfg.warmup_s,
+    ))
 }
 
 /// Run `scenario` on `rig` with the controller `ctl` (however it was
@@ -272,7 +302,7 @@ pub fn run_controller(
             pressure_cmd_mpa: f64::from(step.pressure_cmd_mpa),
             feedforward_mpa: f64::from(step.feedforward_mpa),
             load_n: s.load_n,
-            model_load_n: f64::from(ctl.tracker().load_n()),
+            model_load_n: f64::from(ctl.model_load_n()),
             branch: match step.branch {
                 Branch::Contraction => 1,
                 Branch::Expansion => -1,

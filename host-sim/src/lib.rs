@@ -28,5 +28,6 @@ pub mod end_to_end;
 pub mod faults;
 pub mod hal_mocks;
 pub mod harness;
+pub mod preisach;
 pub mod scenarios;
 pub mod wear;

@@ -13,7 +13,7 @@
 //! from the blobs: about 100 s of the run's 115 s on two cores).
 //! Default output folder: `target/host-sim-report/`.
 
-use host_sim::bench::{run, BenchConfig, Mode, Run};
+use host_sim::bench::{run, run_booted, BenchConfig, Mode, Run};
 use host_sim::report;
 use host_sim::scenarios::Scenario;
 use std::path::PathBuf;
@@ -105,19 +105,28 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
     report::plot_characterisation(&out.join("characterisation_loops.svg"), &samples)?;
     println!("      {} samples", samples.len());
 
-    let mut results: Vec<(Scenario, Run, Run, Run)> = Vec::new();
+    // The Preisach model of the same record, booted from its blob.
+    let preisach_blob = host_sim::preisach::identify_blob(&samples)?;
+    println!(
+        "      Preisach 16 x 16 at 6 loads identified on it: blob {} bytes",
+        preisach_blob.len()
+    );
+
+    let mut results: Vec<(Scenario, Run, Run, Run, Run)> = Vec::new();
     let list = scenarios(seed);
     for (i, sc) in list.into_iter().enumerate() {
         println!("[{}/7] {} ({:.0} s) ...", i + 2, sc.title, sc.duration_s);
         let pi = run(&sc, Mode::PiOnly, &cfg);
         let ff = run(&sc, Mode::FeedforwardPi, &cfg);
         let mem = run(&sc, Mode::FeedforwardMemoryPi, &cfg);
-        for r in [&pi, &ff, &mem] {
+        let pre = run_booted(&sc, &preisach_blob, Mode::PreisachFeedforwardPi, &cfg)?;
+        for r in [&pi, &ff, &mem, &pre] {
             let suffix = match r.mode {
                 Mode::PiOnly => "pi",
                 Mode::FeedforwardPi => "ff_pi",
                 Mode::FeedforwardMemoryPi => "ff_mem_pi",
                 Mode::DiagnosedFeedforwardPi => "ff_diag_pi",
+                Mode::PreisachFeedforwardPi => "ff_preisach_pi",
             };
             let name = format!("{}_{suffix}.csv", sc.name);
             // 100 Hz in the CSV (every 10th control period) keeps the files small.
@@ -152,14 +161,14 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
             &ff,
             cfg.warmup_s,
         )?;
-        results.push((sc, pi, ff, mem));
+        results.push((sc, pi, ff, mem, pre));
     }
 
     println!();
     println!("| scenario | controller | RMS error | max error | load steps detected (samples) | max FF jump at switch (MPa) | max chamber change in 10 ms at switch (MPa) |");
     println!("|---|---|---|---|---|---|---|");
-    for (sc, pi, ff, mem) in &results {
-        for r in [pi, ff, mem] {
+    for (sc, pi, ff, mem, pre) in &results {
+        for r in [pi, ff, mem, pre] {
             let m = &r.metrics;
             let det: Vec<usize> = m
                 .load_steps
@@ -194,7 +203,7 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
                 chj
             );
         }
-        for r in [ff, mem] {
+        for r in [ff, mem, pre] {
             println!(
                 "| {} | {} / PI | {:.0} % | {:.0} % | | | |",
                 sc.name,
@@ -211,7 +220,7 @@ fn run_main() -> Result<(), Box<dyn std::error::Error>> {
         "| scenario | switches | plain FF+PI: largest | FF(mem)+PI: largest | mitigated / plain |"
     );
     println!("|---|---|---|---|---|");
-    for (sc, _, ff, mem) in &results {
+    for (sc, _, ff, mem, _) in &results {
         let (a, b) = (
             ff.metrics.max_feedforward_jump_mpa(),
             mem.metrics.max_feedforward_jump_mpa(),

@@ -279,7 +279,13 @@ fn run_controller(
     let cal = PressureCalibration::ADC12_0_1MPA;
     let refs = run_setpoints();
     let mut p = 0.15f32;
-    let mut x = c.tracker().model().contraction(p, Branch::Contraction);
+    // The active model's contraction at `p` on `branch` (the tracker's own
+    // when `None`): the bench controller runs the paper model.
+    let contraction_at = |c: &Controller, p: f32, branch: Option<Branch>| match c.tracker() {
+        Some(t) => t.model().contraction(p, branch.unwrap_or(t.branch())),
+        None => fail("the bench controller runs the paper model"),
+    };
+    let mut x = contraction_at(&c, p, Some(Branch::Contraction));
     for (k, (&x_ref, class)) in refs.iter().zip(classes.iter_mut()).enumerate() {
         bus.pressure_counts.set(cal.to_counts(p));
         bus.contraction.set(x);
@@ -299,10 +305,12 @@ fn run_controller(
             fail("controller faulted in the run");
         }
         *class = u8::from(step.tracker.branch_switch.is_some()) * REVERSAL
-            + u8::from(step.tracker.load_switch.is_some() || !c.tracker().inverse_ready())
-                * LOAD_SWITCH;
+            + u8::from(
+                step.tracker.load_switch.is_some()
+                    || c.tracker().is_some_and(|t| !t.inverse_ready()),
+            ) * LOAD_SWITCH;
         p += (step.pressure_cmd_mpa - p) / 3.0;
-        x = c.tracker().model().contraction(p, c.tracker().branch());
+        x = contraction_at(&c, p, None);
     }
 }
 

@@ -156,10 +156,16 @@ fn fault_demo(mut ctl: Controller) -> ! {
         load: SimLoad(&bus),
         valve,
     };
-    let mut plant = MusclePlant::new(
-        ctl.coeffs().load_model_clamped(scenario::LOAD_N),
-        PlantConfig::DEFAULT,
-    );
+    // The blob's own model as the muscle; a Preisach blob's, which has no
+    // load model to build the plant from, gets the run-pass scenario's.
+    let plant_model = match ctl.coeffs() {
+        Some(c) => c.load_model_clamped(scenario::LOAD_N),
+        None => match pam_core::Coeffs::new(scenario::plant_params()) {
+            Ok(c) => c.load_model_clamped(scenario::LOAD_N),
+            Err(_) => finish(false),
+        },
+    };
+    let mut plant = MusclePlant::new(plant_model, PlantConfig::DEFAULT);
     let mut noise = Noise::new(7);
     let dt_s = ControllerConfig::DEFAULT.dt_s;
     let max = f32::from(PWM_MAX_DUTY);
@@ -254,19 +260,32 @@ fn main() -> ! {
     };
     let effects = booted.effects;
     let with_effects = effects != pam_core::Effects::NONE;
+    let preisach = booted.controller.preisach().is_some();
     let named = |on: bool, name: &'static str| if on { name } else { "" };
-    log!(
-        info,
-        "boot: coefficient blob accepted ({} bytes, version {}{}{}{}{}{}{})",
-        blob.len(),
-        blob.get(4).copied().unwrap_or(0),
-        named(effects.memory.is_some(), ", non-local memory"),
-        named(effects.rate.is_some(), ", rate dependence"),
-        named(effects.creep.is_some(), ", creep"),
-        named(effects.width.is_some(), ", load-dependent width"),
-        named(effects.shape.is_some(), ", constraint shape"),
-        named(effects.pressure_lag.is_some(), ", pressure lag")
-    );
+    if preisach {
+        log!(
+            info,
+            "boot: Preisach blob accepted ({} bytes, version {}, {} x {} relay rows at {} loads)",
+            blob.len(),
+            blob.get(4).copied().unwrap_or(0),
+            firmware::controller::preisach::PREISACH_ROWS,
+            firmware::controller::preisach::PREISACH_ROWS,
+            firmware::controller::preisach::PREISACH_LOADS
+        );
+    } else {
+        log!(
+            info,
+            "boot: coefficient blob accepted ({} bytes, version {}{}{}{}{}{}{})",
+            blob.len(),
+            blob.get(4).copied().unwrap_or(0),
+            named(effects.memory.is_some(), ", non-local memory"),
+            named(effects.rate.is_some(), ", rate dependence"),
+            named(effects.creep.is_some(), ", creep"),
+            named(effects.width.is_some(), ", load-dependent width"),
+            named(effects.shape.is_some(), ", constraint shape"),
+            named(effects.pressure_lag.is_some(), ", pressure lag")
+        );
+    }
     #[cfg(feature = "qemu")]
     if cfg!(feature = "qemu-panic") || PENDED.is_some() {
         fault_demo(booted.controller)
@@ -287,14 +306,17 @@ fn main() -> ! {
         }
     };
     report(
-        if with_effects {
+        if preisach {
+            "Preisach feedforward"
+        } else if with_effects {
             "hysteresis feedforward inverting the blob's effects"
         } else {
             "hysteresis feedforward"
         },
         &result,
     );
-    // The same run without hysteresis compensation, for comparison only.
+    // The same run without hysteresis compensation, for comparison only (a
+    // Preisach model has no constraint model: refused, not run).
     if let Ok(r) = run(Feedforward::Constraint, false) {
         report("constraint-model feedforward", &r);
     }

@@ -212,6 +212,30 @@ pub enum Feedforward {
     /// alone, [`Feedforward::HysteresisMemory`]. What a blob with effects
     /// gives ([`model_from_blob`](crate::boot::model_from_blob)).
     HysteresisEffects(Effects),
+    /// The Preisach model of a Preisach blob ([`pam_core::preisach`], magic
+    /// `PAMP`, as `pam-lab compare` writes it): pam-core's exact inverse
+    /// from the relay states the measured pressure left
+    /// ([`super::preisach`]). What a Preisach blob gives
+    /// ([`boot`](crate::boot::boot)); only with a Preisach model, which runs
+    /// this or [`Feedforward::Off`].
+    ///
+    /// Work per step: the model's relay update and output (the model
+    /// check's prediction) and its inverse, at most `N` = 16 thresholds;
+    /// bench-m4: `preisach16_step`, `preisach16_feedforward_far`.
+    Preisach,
+}
+
+impl Feedforward {
+    /// Whether this feedforward runs on a model of the Preisach family
+    /// (`Some(true)`), the paper's (`Some(false)`), or either
+    /// ([`Feedforward::Off`], `None`).
+    pub fn needs_preisach(&self) -> Option<bool> {
+        match self {
+            Feedforward::Preisach => Some(true),
+            Feedforward::Off => None,
+            _ => Some(false),
+        }
+    }
 }
 
 /// Gains, rate and limits of the controller.
@@ -437,6 +461,10 @@ pub enum Setting {
     /// ([`AdaptationConfig::is_valid`]), with the paper's model as
     /// feedforward.
     Adaptation,
+    /// `feedforward` for the model the controller runs: a Preisach model
+    /// runs [`Feedforward::Preisach`] or [`Feedforward::Off`], the paper's
+    /// model every other mode.
+    FeedforwardModel,
 }
 
 impl Setting {
@@ -461,7 +489,9 @@ impl Setting {
             Setting::ImplausibleContraction => "implausible_contraction",
             Setting::ImplausibleLagS => "implausible_lag_s",
             Setting::ImplausibleSettleS => "implausible_settle_s",
-            Setting::MemoryShape | Setting::FeedforwardEffects => "feedforward",
+            Setting::MemoryShape | Setting::FeedforwardEffects | Setting::FeedforwardModel => {
+                "feedforward"
+            }
             Setting::RecoverySamples => "recovery_samples",
             Setting::LatchWindowPeriods => "latch_window_periods",
             Setting::Adaptation => "adaptation",
@@ -490,6 +520,9 @@ impl Setting {
             Setting::MemoryShape => "memory shape must be finite and in [0.05, 50]",
             Setting::FeedforwardEffects => {
                 "effects must pass pam-core's validation, with dt_s at most 1 s"
+            }
+            Setting::FeedforwardModel => {
+                "must be Preisach or Off for a Preisach model, and not Preisach for the paper's model"
             }
             Setting::RecoverySamples | Setting::LatchWindowPeriods => "must be >= 1",
             Setting::Adaptation => {

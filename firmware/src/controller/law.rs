@@ -3,8 +3,9 @@
 //!
 //! # Clamps
 //! * The desired contraction is clamped to the active model's stroke
-//!   `[R_i, Rx_i]`: outside it no pressure holds it, and the integrator
-//!   would wind up chasing it.
+//!   `[R_i, Rx_i]` (a Preisach model's: its output empty and full,
+//!   [`pam_core::preisach::Preisach::stroke`]): outside it no pressure
+//!   holds it, and the integrator would wind up chasing it.
 //! * The pressure command is clamped to `[0, min(Pmax, max_command_mpa)]`:
 //!   the muscle cannot hold negative gauge pressure, the model is not
 //!   calibrated above `Pmax`, and the hardware's limit
@@ -18,6 +19,7 @@
 
 use super::config::{ControllerConfig, Feedforward};
 use super::monitor::ModelBand;
+use super::preisach::PreisachModel;
 use pam_core::effects::Effects;
 use pam_core::feedforward::{InverseState, ModelInverse};
 use pam_core::{clamp, Branch, Error, LoadModel, Params};
@@ -41,7 +43,10 @@ pub(super) fn inverted_effects(feedforward: &Feedforward) -> Option<Effects> {
             ..Effects::NONE
         }),
         Feedforward::HysteresisEffects(e) => Some(*e),
-        Feedforward::Hysteresis | Feedforward::Constraint | Feedforward::Off => None,
+        Feedforward::Hysteresis
+        | Feedforward::Constraint
+        | Feedforward::Off
+        | Feedforward::Preisach => None,
     }
 }
 
@@ -195,7 +200,65 @@ impl Law {
                     None => model.pressure_mpa(x_ref, branch),
                 }
             }
+            // A Preisach model runs `command_preisach`; the controller
+            // refuses this mode with the paper's model (`FeedforwardModel`).
+            Feedforward::Preisach => 0.0,
         };
+        self.close_loop(
+            cfg,
+            ki_dt,
+            x_ref,
+            feedforward_mpa,
+            pressure_mpa,
+            contraction,
+        )
+    }
+
+    /// One period of a controller running a Preisach model, on checked
+    /// readings: the set-point clamped to the model's stroke at the active
+    /// load, [`Feedforward::Preisach`]'s pressure from pam-core's exact
+    /// inverse (from the relay states the measured pressure left; see
+    /// [`super::preisach`]), then the same PI and inner loop as the paper's
+    /// feedforward. [`Feedforward::Off`]: the PI alone.
+    #[inline(always)]
+    pub fn command_preisach(
+        &mut self,
+        cfg: &ControllerConfig,
+        ki_dt: f32,
+        model: &PreisachModel,
+        desired_contraction: f32,
+        pressure_mpa: f32,
+        contraction: f32,
+    ) -> Command {
+        let x_ref = model.clamp_setpoint(desired_contraction);
+        let feedforward_mpa = match cfg.feedforward {
+            Feedforward::Preisach => model.feedforward_mpa(x_ref),
+            // Off; the controller refuses the paper model's modes here.
+            _ => 0.0,
+        };
+        self.close_loop(
+            cfg,
+            ki_dt,
+            x_ref,
+            feedforward_mpa,
+            pressure_mpa,
+            contraction,
+        )
+    }
+
+    /// PI on the contraction error added to the feedforward, the clamps and
+    /// the anti-windup of the module docs, and the inner pressure loop: the
+    /// part of the law every model shares.
+    #[inline(always)]
+    fn close_loop(
+        &mut self,
+        cfg: &ControllerConfig,
+        ki_dt: f32,
+        x_ref: f32,
+        feedforward_mpa: f32,
+        pressure_mpa: f32,
+        contraction: f32,
+    ) -> Command {
         let error = x_ref - contraction;
         let max_mpa = self.max_command_mpa;
         let unclamped_mpa = feedforward_mpa + cfg.kp_mpa * error + self.integral_mpa;

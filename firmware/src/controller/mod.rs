@@ -60,6 +60,7 @@ pub mod config;
 pub mod io;
 pub mod law;
 pub mod monitor;
+pub mod preisach;
 #[cfg(test)]
 mod tests;
 
@@ -67,7 +68,8 @@ pub use adapt::{Adaptation, AdaptationConfig};
 pub use config::{ConfigError, ControllerConfig, Feedforward, SafetyConfig, Setting};
 pub use io::{Io, Sample, ValveCommand};
 pub use law::{MEMORY_DEPTH, MEMORY_INVERSE_STEPS};
-pub use monitor::{Check, Fault, SensorId};
+pub use monitor::{Check, Fault, ModelLimits, SensorId};
+pub use preisach::{PreisachModel, PreisachTable16};
 
 use crate::hal::{ContractionSensor, LoadCell, PressureSensor, SafeState, Valve};
 use law::Law;
@@ -134,13 +136,27 @@ pub struct Step {
     pub model_excess: f32,
 }
 
-/// The position controller: coefficients, configuration, mode tracker, the
-/// law's state and the monitor's; no references.
+/// The model a controller runs, from its blob.
+// The Preisach variant carries its table (6 KB) and the running model's
+// two coefficient buffers; the controller is built once and stays in one
+// place (a static on the chip), so the size costs no copies per step.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+enum Model {
+    /// The paper's model: the coefficients and the mode tracker (branch,
+    /// active load model, its inverse tables).
+    Paper { coeffs: Coeffs, tracker: Tracker },
+    /// A Preisach model ([`preisach`]).
+    Preisach(PreisachModel),
+}
+
+/// The position controller: the model (coefficients and mode tracker, or a
+/// Preisach table and its running model), configuration, the law's state
+/// and the monitor's; no references.
 #[derive(Clone, Debug)]
 pub struct Controller {
-    coeffs: Coeffs,
+    model: Model,
     config: ControllerConfig,
-    tracker: Tracker,
     law: Law,
     monitor: Monitor,
     fault: Option<Fault>,
@@ -165,6 +181,9 @@ impl Controller {
         initial_load_n: f32,
     ) -> Result<Controller, ConfigError> {
         config.validate()?;
+        if config.feedforward.needs_preisach() == Some(true) {
+            return Err(ConfigError::Invalid(Setting::FeedforwardModel));
+        }
         let mut tracker =
             Tracker::new(&coeffs, config.tracker, initial_load_n, Branch::Contraction)
                 .map_err(ConfigError::Tracker)?;
@@ -177,7 +196,7 @@ impl Controller {
         Ok(Controller {
             monitor: Monitor::new(
                 &config.safety,
-                &coeffs,
+                &ModelLimits::of_coeffs(&coeffs),
                 config.dt_s,
                 law::inverted_effects(&config.feedforward).and_then(|e| {
                     let creep = e.creep.map(|c| c.time_constant_s);
@@ -191,9 +210,8 @@ impl Controller {
             ki_dt: config.ki_mpa_per_s * config.dt_s,
             build_units: table_build_units(&config.feedforward),
             adaptation: config.adaptation.map(|a| Adaptation::new(&a, config.dt_s)),
-            coeffs,
+            model: Model::Paper { coeffs, tracker },
             config,
-            tracker,
             law,
             fault: None,
             good_run: 0,
@@ -201,9 +219,59 @@ impl Controller {
         })
     }
 
-    /// The coefficients.
-    pub fn coeffs(&self) -> &Coeffs {
-        &self.coeffs
+    /// A controller for a validated Preisach table (pam-core's blob
+    /// decoder validates it), with the model at `initial_load_n` and every
+    /// relay off (the muscle empty). The feedforward must be
+    /// [`Feedforward::Preisach`] or [`Feedforward::Off`], without the
+    /// online adaptation (it adapts the paper model's stroke).
+    ///
+    /// The safety monitor is the same: its load range and over-pressure
+    /// limit come from the table ([`PreisachModel::limits`]), and the model
+    /// check judges the measured contraction against the model's forward
+    /// output at the measured pressure (`monitor::Monitor::check_prediction`).
+    pub fn new_preisach(
+        table: PreisachTable16,
+        config: ControllerConfig,
+        initial_load_n: f32,
+    ) -> Result<Controller, ConfigError> {
+        config.validate()?;
+        if config.feedforward.needs_preisach() == Some(false) {
+            return Err(ConfigError::Invalid(Setting::FeedforwardModel));
+        }
+        if config.adaptation.is_some() {
+            return Err(ConfigError::Invalid(Setting::Adaptation));
+        }
+        let model = PreisachModel::new(table, initial_load_n);
+        let limits = model.limits();
+        let law = Law::new(&config, limits.max_pressure_mpa).map_err(ConfigError::Coefficients)?;
+        Ok(Controller {
+            monitor: Monitor::new(&config.safety, &limits, config.dt_s, None),
+            ki_dt: config.ki_mpa_per_s * config.dt_s,
+            build_units: table_build_units(&config.feedforward),
+            adaptation: None,
+            model: Model::Preisach(model),
+            config,
+            law,
+            fault: None,
+            good_run: 0,
+            period: 0,
+        })
+    }
+
+    /// The paper model's coefficients; `None` for a Preisach model.
+    pub fn coeffs(&self) -> Option<&Coeffs> {
+        match &self.model {
+            Model::Paper { coeffs, .. } => Some(coeffs),
+            Model::Preisach(_) => None,
+        }
+    }
+
+    /// The Preisach model; `None` for the paper's.
+    pub fn preisach(&self) -> Option<&PreisachModel> {
+        match &self.model {
+            Model::Paper { .. } => None,
+            Model::Preisach(m) => Some(m),
+        }
     }
 
     /// The configuration.
@@ -211,9 +279,31 @@ impl Controller {
         &self.config
     }
 
-    /// The mode tracker (active branch and load model).
-    pub fn tracker(&self) -> &Tracker {
-        &self.tracker
+    /// The mode tracker (active branch and load model) of the paper's
+    /// model; `None` for a Preisach model.
+    pub fn tracker(&self) -> Option<&Tracker> {
+        match &self.model {
+            Model::Paper { tracker, .. } => Some(tracker),
+            Model::Preisach(_) => None,
+        }
+    }
+
+    /// The load the active model is for, N (the tracker's, or the Preisach
+    /// model's active load).
+    pub fn model_load_n(&self) -> f32 {
+        match &self.model {
+            Model::Paper { tracker, .. } => tracker.load_n(),
+            Model::Preisach(m) => m.load_n(),
+        }
+    }
+
+    /// What the monitor's rules take from the model: its calibrated load
+    /// range and the pressure it is calibrated to.
+    pub fn model_limits(&self) -> ModelLimits {
+        match &self.model {
+            Model::Paper { coeffs, .. } => ModelLimits::of_coeffs(coeffs),
+            Model::Preisach(m) => m.limits(),
+        }
     }
 
     /// The active fault; `None` while controlling.
@@ -308,9 +398,12 @@ impl Controller {
         // The new load's tables, after everything else of the period: a
         // period whose memory feedforward computed a minor loop's ends (two
         // table-free inverses) leaves the build to the next one (and does
-        // not call it: a call for no units still costs its entry).
-        if !self.tracker.inverse_ready() && !self.law.rebuilt_loop() {
-            self.tracker.advance_build(self.build_units);
+        // not call it: a call for no units still costs its entry). A
+        // Preisach model makes a new load's coefficients in its own update.
+        if let Model::Paper { tracker, .. } = &mut self.model {
+            if !tracker.inverse_ready() && !self.law.rebuilt_loop() {
+                tracker.advance_build(self.build_units);
+            }
         }
         step
     }
@@ -324,7 +417,11 @@ impl Controller {
             new_fault: None,
             recovered: false,
             latched: self.monitor.latched(),
-            branch: self.tracker.branch(),
+            branch: match &self.model {
+                Model::Paper { tracker, .. } => tracker.branch(),
+                // No branches: see `preisach_period`.
+                Model::Preisach(_) => Branch::Contraction,
+            },
             feedforward_mpa: 0.0,
             pressure_cmd_mpa: 0.0,
             command: ValveCommand::Safe(self.config.safety.safe_state),
@@ -342,20 +439,41 @@ impl Controller {
                 (Ok(p), Ok(x), Ok(l)) => (p, x, l),
                 _ => return step,
             };
+        match self.model {
+            Model::Paper { .. } => {
+                self.paper_period(step, desired_contraction, pressure_mpa, contraction, load_n)
+            }
+            Model::Preisach(_) => {
+                self.preisach_period(step, desired_contraction, pressure_mpa, contraction, load_n)
+            }
+        }
+    }
+
+    /// Steps 3–7 with the paper's model, on checked readings.
+    #[inline(always)]
+    fn paper_period(
+        &mut self,
+        mut step: Step,
+        desired_contraction: f32,
+        pressure_mpa: f32,
+        contraction: f32,
+        load_n: f32,
+    ) -> Step {
+        let Model::Paper { coeffs, tracker } = &mut self.model else {
+            return step;
+        };
         // 3. The tracker.
-        step.tracker = self
-            .tracker
-            .update(&self.coeffs, desired_contraction, load_n);
+        step.tracker = tracker.update(coeffs, desired_contraction, load_n);
         if step.tracker.load_switch.is_some() {
             self.law.load_switched();
             self.monitor.load_switched();
-        } else if !self.tracker.inverse_ready() {
+        } else if !tracker.inverse_ready() {
             // The new load's inverse tables are still being built: the
             // model check (two inverses) stays paused until they are, and
             // for its settling time after.
             self.monitor.load_switched();
         }
-        step.branch = self.tracker.branch();
+        step.branch = tracker.branch();
         // 4. Responses, timing, and (while controlling) the model.
         if let Some(f) = self.monitor.check_response(pressure_mpa) {
             self.enter_fault(f, &mut step);
@@ -375,10 +493,10 @@ impl Controller {
                     // changed: frozen for the settling time.
                     a.freeze();
                     adapt::Outcome::Held
-                } else if self.tracker.inverse_ready() {
+                } else if tracker.inverse_ready() {
                     a.update(
-                        self.tracker.model(),
-                        self.tracker.branch(),
+                        tracker.model(),
+                        tracker.branch(),
                         pressure_mpa,
                         contraction,
                         self.monitor.last_flow.abs() >= 1.0,
@@ -395,16 +513,14 @@ impl Controller {
                     step.latched = true;
                     return step;
                 }
-                a.checked_contraction(self.tracker.model(), contraction)
+                a.checked_contraction(tracker.model(), contraction)
             }
         };
-        let band = self.law.model_band(
-            self.coeffs.params(),
-            self.tracker.model(),
-            self.tracker.load_n(),
-        );
+        let band = self
+            .law
+            .model_band(coeffs.params(), tracker.model(), tracker.load_n());
         let (excess, fault) = self.monitor.check_model(
-            self.tracker.model(),
+            tracker.model(),
             &band,
             pressure_mpa,
             judged,
@@ -415,29 +531,97 @@ impl Controller {
             self.enter_fault(f, &mut step);
             return step;
         }
-        if let Some(f) = self.fault {
-            step.fault = Some(f);
-            if self.monitor.latched() {
-                return step;
-            }
-            self.good_run = self.good_run.saturating_add(1);
-            if self.good_run < self.config.safety.recovery_samples {
-                return step;
-            }
-            self.fault = None;
-            self.good_run = 0;
-            step.fault = None;
-            step.recovered = true;
+        if !resume(
+            &mut self.fault,
+            &mut self.good_run,
+            &self.monitor,
+            self.config.safety.recovery_samples,
+            &mut step,
+        ) {
+            return step;
         }
         // 5.–7. The law.
         let c = self.law.command(
             &self.config,
             self.ki_dt,
-            self.coeffs.params(),
-            self.tracker.model(),
-            self.tracker.load_n(),
-            self.tracker.branch(),
+            coeffs.params(),
+            tracker.model(),
+            tracker.load_n(),
+            tracker.branch(),
             step.tracker.branch_switch.is_some(),
+            desired_contraction,
+            pressure_mpa,
+            contraction,
+        );
+        step.feedforward_mpa = c.feedforward_mpa;
+        step.pressure_cmd_mpa = c.pressure_cmd_mpa;
+        step.command = ValveCommand::Flow(c.flow);
+        self.monitor.last_flow = c.flow;
+        step
+    }
+
+    /// Steps 3–7 with a Preisach model, on checked readings: the model
+    /// follows the measured load and pressure (its load switch, its relay
+    /// states: [`preisach`]), the response checks, the model check against
+    /// its forward output (`Monitor::check_prediction`), recovery, and
+    /// the law with its inverse as feedforward.
+    ///
+    /// The Preisach model has no branches (its relay states carry the
+    /// direction and the minor loop): `step.branch` stays
+    /// [`Branch::Contraction`] and `step.tracker.branch_switch` `None`;
+    /// `step.tracker.load_switch` reports a completed load switch. While a
+    /// switch is under way, and for `implausible_settle_s` after it, the
+    /// model check pauses, as after the paper tracker's.
+    #[inline(always)]
+    fn preisach_period(
+        &mut self,
+        mut step: Step,
+        desired_contraction: f32,
+        pressure_mpa: f32,
+        contraction: f32,
+        load_n: f32,
+    ) -> Step {
+        let Model::Preisach(model) = &mut self.model else {
+            return step;
+        };
+        // 3. The model follows the checked readings.
+        let followed = model.follow(pressure_mpa, load_n);
+        if let Some((from_n, to_n)) = followed.switched {
+            step.tracker.load_switch = Some(pam_core::tracker::LoadSwitch { from_n, to_n });
+        }
+        if followed.switching || followed.switched.is_some() {
+            self.monitor.load_switched();
+        }
+        // 4. Responses, timing, and (while controlling) the model.
+        if let Some(f) = self.monitor.check_response(pressure_mpa) {
+            self.enter_fault(f, &mut step);
+            return step;
+        }
+        let (excess, fault) =
+            self.monitor
+                .check_prediction(followed.predicted, contraction, self.fault.is_none());
+        step.model_excess = excess;
+        if let Some(f) = fault {
+            self.enter_fault(f, &mut step);
+            return step;
+        }
+        if !resume(
+            &mut self.fault,
+            &mut self.good_run,
+            &self.monitor,
+            self.config.safety.recovery_samples,
+            &mut step,
+        ) {
+            return step;
+        }
+        // 5.–7. The law.
+        let Model::Preisach(model) = &self.model else {
+            return step;
+        };
+        let c = self.law.command_preisach(
+            &self.config,
+            self.ki_dt,
+            model,
             desired_contraction,
             pressure_mpa,
             contraction,
@@ -471,4 +655,33 @@ impl Controller {
     fn safe_state(&self) -> SafeState {
         self.config.safety.safe_state
     }
+}
+
+/// Recovery from the safe state: with a fault active, count this good
+/// sample and leave the safe state after `recovery_samples` of them (never
+/// while latched). Whether the law runs this period.
+#[inline(always)]
+fn resume(
+    fault: &mut Option<Fault>,
+    good_run: &mut u16,
+    monitor: &Monitor,
+    recovery_samples: u16,
+    step: &mut Step,
+) -> bool {
+    let Some(f) = *fault else {
+        return true;
+    };
+    step.fault = Some(f);
+    if monitor.latched() {
+        return false;
+    }
+    *good_run = good_run.saturating_add(1);
+    if *good_run < recovery_samples {
+        return false;
+    }
+    *fault = None;
+    *good_run = 0;
+    step.fault = None;
+    step.recovered = true;
+    true
 }

@@ -24,6 +24,42 @@ use super::io::Sample;
 use crate::hal::SensorErrorKind;
 use pam_core::{Branch, Coeffs, LoadModel};
 
+/// What the monitor's rules need of the model the controller runs,
+/// whichever family: its calibrated load range and the pressure it is
+/// calibrated to (the paper model's `Pmax`, a Preisach table's top).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ModelLimits {
+    /// Lightest calibrated load, N.
+    pub min_load_n: f32,
+    /// Heaviest calibrated load, N.
+    pub max_load_n: f32,
+    /// Highest pressure the model is calibrated to, MPa.
+    pub max_pressure_mpa: f32,
+}
+
+impl ModelLimits {
+    /// The paper model's: its load family's range and `Pmax`.
+    pub fn of_coeffs(coeffs: &Coeffs) -> ModelLimits {
+        let p = coeffs.params();
+        ModelLimits {
+            min_load_n: p.min_load_n,
+            max_load_n: p.max_load_n,
+            max_pressure_mpa: p.points.max_pressure_mpa,
+        }
+    }
+
+    /// A Preisach table's: its first and last grid load, its top pressure.
+    pub fn of_preisach(table: &super::preisach::PreisachTable16) -> ModelLimits {
+        let last = super::preisach::PREISACH_LOADS.saturating_sub(1) as f32;
+        ModelLimits {
+            min_load_n: table.min_load_n,
+            max_load_n: table.min_load_n + last * table.load_step_n,
+            max_pressure_mpa: table.max_pressure_mpa,
+        }
+    }
+}
+
 /// Which sensor a [`Fault`] concerns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -308,6 +344,10 @@ pub(super) struct Monitor {
     /// first good sample).
     envelope_lo_mpa: f32,
     envelope_hi_mpa: f32,
+    /// Lagged minimum and maximum of a Preisach model's predicted
+    /// contraction ([`Monitor::check_prediction`]; NaN before the first).
+    predicted_lo: f32,
+    predicted_hi: f32,
     implausible_periods: u16,
     outside: u16,
     /// Periods the model check pauses after a load switch, and how many
@@ -343,15 +383,14 @@ impl Monitor {
     /// `implausible_lag_s`.
     pub fn new(
         s: &SafetyConfig,
-        coeffs: &Coeffs,
+        limits: &ModelLimits,
         dt_s: f32,
         lag_time_constant_s: Option<f32>,
     ) -> Monitor {
         use SensorId::*;
-        let p = coeffs.params();
-        let pmax = p.points.max_pressure_mpa;
-        let load_lo = p.min_load_n - s.load_margin_n;
-        let load_hi = p.max_load_n + s.load_margin_n;
+        let pmax = limits.max_pressure_mpa;
+        let load_lo = limits.min_load_n - s.load_margin_n;
+        let load_hi = limits.max_load_n + s.load_margin_n;
         Monitor {
             rules: [
                 Rule::new(
@@ -411,6 +450,8 @@ impl Monitor {
             },
             envelope_lo_mpa: f32::NAN,
             envelope_hi_mpa: f32::NAN,
+            predicted_lo: f32::NAN,
+            predicted_hi: f32::NAN,
             implausible_periods: s.implausible_periods,
             outside: 0,
             // `as` saturates (and a NaN, excluded by validation, gives 0).
@@ -550,6 +591,57 @@ impl Monitor {
             None => (a, b),
         };
         let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+        self.judge(lo, hi, contraction)
+    }
+
+    /// The model check for a Preisach model, whose forward evaluation
+    /// gives one contraction at the measured pressure (`predicted`, from
+    /// the relay states the measured pressure history left) rather than a
+    /// band between two branches: the band is the lagged minimum and
+    /// maximum of that prediction (following it at once outward, relaxing
+    /// inward with the same time constant as the paper model's pressure
+    /// envelope: the contraction follows its prediction with the muscle's
+    /// and the load's dynamics), widened by `implausible_contraction`, the
+    /// same bound, window and pauses as [`Self::check_model`].
+    ///
+    /// The prediction carries the minor loop the muscle is on, so this
+    /// band is narrower than the paper model's (which spans the whole loop
+    /// at a pressure): an offset or decoupled sensor leaves it sooner, and
+    /// a model far from its muscle trips it sooner too (host-sim measures
+    /// the distance on normal runs against the bound).
+    #[inline(always)]
+    pub fn check_prediction(
+        &mut self,
+        predicted: f32,
+        contraction: f32,
+        controlling: bool,
+    ) -> (f32, Option<Fault>) {
+        let g = self.envelope_gain;
+        let (lo, hi) = (self.predicted_lo, self.predicted_hi);
+        // Follow at once outward (NaN: the first sample), relax inward.
+        self.predicted_lo = if lo <= predicted {
+            lo + g * (predicted - lo)
+        } else {
+            predicted
+        };
+        self.predicted_hi = if hi >= predicted {
+            hi + g * (predicted - hi)
+        } else {
+            predicted
+        };
+        if self.implausible_periods == 0 || !controlling || self.settling > 0 {
+            self.settling = self.settling.saturating_sub(1);
+            self.outside = 0;
+            return (0.0, None);
+        }
+        self.judge(self.predicted_lo, self.predicted_hi, contraction)
+    }
+
+    /// How far `contraction` lies outside `[lo, hi]` (0 inside), and the
+    /// fault once it has been beyond the bound for `implausible_periods`
+    /// periods in a row.
+    #[inline(always)]
+    fn judge(&mut self, lo: f32, hi: f32, contraction: f32) -> (f32, Option<Fault>) {
         let excess = if contraction < lo {
             lo - contraction
         } else if contraction > hi {

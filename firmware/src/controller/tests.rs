@@ -48,7 +48,7 @@ fn good(pressure_mpa: f32, contraction: f32, load_n: f32) -> Sample {
 #[test]
 fn at_the_set_point_the_command_is_the_branch_feedforward() {
     let mut c = controller();
-    let model = c.tracker().model().clone();
+    let model = c.tracker().unwrap().model().clone();
     let x = 0.12;
     let ff = model.pressure_mpa(x, Branch::Contraction);
     let s = c.update(&good(ff, x, 200.0), x);
@@ -72,13 +72,17 @@ fn feedforward_follows_the_branch_of_the_set_point() {
         last = c.update(&good(0.2 + sp * 1e-3, sp, 200.0), sp);
     }
     assert_eq!(last.branch, Branch::Contraction);
-    let up = c.tracker().model().pressure_mpa(x, Branch::Contraction);
+    let up = c
+        .tracker()
+        .unwrap()
+        .model()
+        .pressure_mpa(x, Branch::Contraction);
     while sp > x {
         sp -= 1e-4;
         last = c.update(&good(0.2 - sp * 1e-3, sp, 200.0), sp);
     }
     assert_eq!(last.branch, Branch::Expansion);
-    let m = c.tracker().model();
+    let m = c.tracker().unwrap().model();
     let expected = up - 2.0 * m.offset_mpa(sp);
     assert!(
         (last.feedforward_mpa - m.pressure_mpa(sp, Branch::Expansion)).abs() < 1e-6
@@ -128,7 +132,7 @@ fn integrator_is_bounded_and_does_not_wind_up_in_saturation() {
 #[test]
 fn set_point_outside_the_stroke_is_clamped() {
     let mut c = controller();
-    let m = c.tracker().model().clone();
+    let m = c.tracker().unwrap().model().clone();
     let s = c.update(&good(0.5, m.max_contraction(), 200.0), 5.0);
     assert_eq!(s.fault, None);
     assert!((s.feedforward_mpa - m.max_pressure_mpa()).abs() < 1e-6);
@@ -322,7 +326,7 @@ fn load_within_the_margin_is_clamped_beyond_it_faults() {
         }
         // Readings beyond the edge count as the edge (clamped), so the
         // model is within the inward wobble (a quarter margin) of it.
-        let model_n = c.tracker().load_n();
+        let model_n = c.tracker().unwrap().load_n();
         assert!(
             (model_n - edge).abs() <= 0.25 * margin && (model_n - edge) * outward <= 0.0,
             "{model_n}"
@@ -384,7 +388,7 @@ fn memory_feedforward_follows_a_minor_loop_instead_of_jumping() {
     assert_eq!(plain.len(), mem.len());
     assert_eq!(mem.iter().filter(|s| s.1).count(), 4);
     // The paper's model jumps by about 2·be at each switch.
-    let be2 = 2.0 * c.tracker().model().offset_mpa(0.11);
+    let be2 = 2.0 * c.tracker().unwrap().model().offset_mpa(0.11);
     assert!(largest_jump_at_switch(&plain) > 0.5 * be2);
     // With the memory the feedforward has no step at a switch: it
     // changes only as the set-point moves (1e-4 per sample).
@@ -410,7 +414,7 @@ fn memory_feedforward_follows_a_minor_loop_instead_of_jumping() {
 fn memory_is_cleared_by_a_fault_and_by_a_load_switch() {
     let mut c = with_feedforward(MEMORY);
     sweep(&mut c, &[0.06, 0.16, 0.12]);
-    let model = c.tracker().model().clone();
+    let model = c.tracker().unwrap().model().clone();
     // Inside a minor loop: between the branches.
     let x = 0.12;
     let s = c.update(&good(0.2, x + 1e-4, 200.0), x);
@@ -439,7 +443,7 @@ fn memory_is_cleared_by_a_fault_and_by_a_load_switch() {
     while s.tracker.load_switch.is_none() {
         s = c.update(&good(0.2, x, 400.0), x);
     }
-    let m = c.tracker().model();
+    let m = c.tracker().unwrap().model();
     assert!((s.feedforward_mpa - m.pressure_mpa(x, Branch::Expansion)).abs() < 1e-6);
 }
 
@@ -769,7 +773,8 @@ fn fast_and_full_checks_agree_on_every_sample() {
                         contraction: x,
                         load_n: l,
                     };
-                    let mut fast = monitor::Monitor::new(&s, &coeffs, 1e-3, None);
+                    let mut fast =
+                        monitor::Monitor::new(&s, &ModelLimits::of_coeffs(&coeffs), 1e-3, None);
                     let mut full = fast;
                     assert_eq!(
                         fast.check(&sample, sp),
@@ -833,7 +838,7 @@ fn a_model_whose_pmax_lies_above_the_hardware_limit_never_commands_above_it() {
 /// Readings at `p` with the contraction `dx` beyond the expansion branch
 /// (or inside the band when `dx` is negative enough), dithered by a count.
 fn beside_band(c: &Controller, k: u32, p: f32, dx: f32) -> Sample {
-    let m = c.tracker().model();
+    let m = c.tracker().unwrap().model();
     let x = m.contraction(p, Branch::Expansion) + dx;
     let d = (k % 2) as f32 * 1e-4;
     good(p, x + d, 200.0)
@@ -863,7 +868,7 @@ fn the_model_check_trips_after_its_time_outside_the_band() {
     assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
     // Below the contraction branch too.
     let mut c = controller_with(cfg);
-    let m = c.tracker().model().clone();
+    let m = c.tracker().unwrap().model().clone();
     let below = m.contraction(p, Branch::Contraction) - s.implausible_contraction - 0.01;
     let tripped = (0..n).map(|k| c.update(&good(p, below + (k % 2) as f32 * 1e-4, 200.0), 0.12));
     assert_eq!(
@@ -884,7 +889,7 @@ fn the_model_band_follows_the_pressure_with_the_lag() {
     // not.
     let cfg = model_only();
     let mut c = controller_with(cfg);
-    let m = c.tracker().model().clone();
+    let m = c.tracker().unwrap().model().clone();
     let x_old = m.contraction(0.1, Branch::Contraction);
     for k in 0..200u32 {
         let d = (k % 2) as f32 * 1e-4;
@@ -910,7 +915,11 @@ fn the_model_check_pauses_while_a_load_step_settles() {
     let s = cfg.safety;
     let mut c = controller_with(cfg);
     let p = 0.35;
-    let x = c.tracker().model().contraction(p, Branch::Contraction);
+    let x = c
+        .tracker()
+        .unwrap()
+        .model()
+        .contraction(p, Branch::Contraction);
     // The load steps to 600 N; the muscle (this contraction) would belong
     // to 200 N, outside the new load's band.
     let heavy = Coeffs::new(Params::DEFAULT)
@@ -1114,7 +1123,7 @@ fn adapting() -> ControllerConfig {
 /// Readings of a muscle whose stroke is `scale` times the model's, holding
 /// a slow pressure ramp at period `k`.
 fn scaled_muscle(c: &Controller, scale: f32, k: usize) -> (Sample, f32) {
-    let m = c.tracker().model();
+    let m = c.tracker().unwrap().model();
     let p = 0.15 + 0.2 * ((k % 4000) as f32 / 4000.0);
     let r = m.root_contraction();
     let x = r + scale * (m.contraction(p, Branch::Contraction) - r);
@@ -1133,7 +1142,7 @@ fn the_adaptation_learns_the_stroke_and_the_feedforward_uses_it() {
     assert!((0.9 - 1e-3..0.99).contains(&scale), "{scale}");
     // The feedforward holds a set-point on the adapted stroke: the flashed
     // model's pressure for `R + (x − R)/s`.
-    let m = c.tracker().model().clone();
+    let m = c.tracker().unwrap().model().clone();
     let x = 0.12;
     let (s, _) = scaled_muscle(&c, 0.9, 0);
     let step = c.update(

@@ -84,6 +84,24 @@ pub fn encode<const N: usize, const L: usize>(
     Ok(())
 }
 
+/// Length of the Preisach blob framed at the start of `bytes` (its
+/// header's payload length plus header and CRC), for a blob stored in a
+/// larger flash region; `None` without this format's magic and version
+/// there or when the region is shorter. Nothing is checked beyond the
+/// header: [`decode`] checks the rest.
+pub fn framed_len(bytes: &[u8]) -> Option<usize> {
+    let head = bytes.get(0..8)?;
+    if head.get(0..4)? != PREISACH_BLOB_MAGIC {
+        return None;
+    }
+    let version = u16::from_le_bytes([*head.get(4)?, *head.get(5)?]);
+    if version != PREISACH_BLOB_VERSION {
+        return None;
+    }
+    let len = 8 + usize::from(u16::from_le_bytes([*head.get(6)?, *head.get(7)?])) + 4;
+    (len <= bytes.len()).then_some(len)
+}
+
 /// Read and validate a blob of a table of `N` rows at `L` loads; any
 /// defect is an [`Error::Blob`] or the table's validation error.
 pub fn decode<const N: usize, const L: usize>(bytes: &[u8]) -> Result<PreisachTable<N, L>, Error> {
@@ -198,6 +216,12 @@ mod tests {
         assert_eq!(&blob[..4], b"PAMP");
         assert_eq!(decode::<4, 2>(&blob).unwrap(), t);
         assert!(encode(&t, &mut [0u8; 10]).is_err());
+        // In a larger, erased region the header says where it ends.
+        let mut region = [0xFFu8; blob_len(4, 2) + 40];
+        region[..blob.len()].copy_from_slice(&blob);
+        assert_eq!(framed_len(&region), Some(blob.len()));
+        assert_eq!(framed_len(&region[..blob.len() - 1]), None);
+        assert_eq!(framed_len(&[0xFF; 64]), None);
     }
 
     #[test]

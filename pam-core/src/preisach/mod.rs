@@ -45,7 +45,7 @@
 //! # Blob
 //! [`blob`]: the table framed and checked as the paper model's blob is,
 //! with its own magic (`PAMP`); `pam-lab compare` writes it. The firmware
-//! does not boot it yet.
+//! boots it (`firmware::boot`, `Feedforward::Preisach`).
 //!
 //! No allocation and no panic paths (indexing through iterators and `get`).
 

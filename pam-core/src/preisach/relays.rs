@@ -225,6 +225,21 @@ impl<const N: usize> Preisach<N> {
         }
     }
 
+    /// The model's stroke at the active load: its contraction with every
+    /// relay off at 0 MPa (the bias) and with every relay on at
+    /// `max_pressure_mpa` (the bias, the linear term there and every
+    /// weight). A set-point outside it is beyond what the model says the
+    /// muscle reaches along the major loop (with weights of both signs a
+    /// minor loop can reach a little beyond; the inverse answers the end of
+    /// the range there).
+    pub fn stroke(&self) -> (f32, f32) {
+        let c = self.coeffs();
+        (
+            c.bias,
+            c.bias + c.linear * self.max_pressure_mpa + c.total_weight(),
+        )
+    }
+
     /// The predicted contraction for the current state.
     #[inline(always)]
     pub fn output(&self) -> f32 {

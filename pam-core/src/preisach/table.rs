@@ -85,6 +85,11 @@ impl<const N: usize> PreisachCoeffs<N> {
         (self.at(last, j) - self.at(last, jb)) - (self.at(before, j) - self.at(before, jb))
     }
 
+    /// Every relay's weight summed: the last entry of the Everett function.
+    pub fn total_weight(&self) -> f32 {
+        self.at(N.wrapping_sub(1), N.wrapping_sub(1))
+    }
+
     /// Relay `(i, j)`'s weight (0 outside the half-grid).
     pub fn weight(&self, i: usize, j: usize) -> f32 {
         if j > i {

@@ -306,3 +306,14 @@ fn the_inverse_never_returns_nan_or_leaves_the_range() {
     m.update_state(0.7);
     assert_eq!(m.inverse_pressure_mpa(f32::NAN), 0.5);
 }
+
+#[test]
+fn the_stroke_is_the_output_empty_and_at_the_top_of_the_range() {
+    let t = table(0.02, 0.05, |i, j| 0.001 * (1 + i + j) as f32);
+    let empty = Preisach::new(&t, 100.0, 0.0);
+    let (lo, hi) = empty.stroke();
+    assert_eq!(lo, empty.output());
+    let full = Preisach::new(&t, 100.0, t.max_pressure_mpa);
+    assert!((hi - full.output()).abs() < 1e-6, "{hi} {}", full.output());
+    assert!(lo < hi);
+}
