@@ -572,7 +572,12 @@ impl Controller {
     /// `step.tracker.load_switch` reports a completed load switch. While a
     /// switch is under way, and for `implausible_settle_s` after it, the
     /// model check pauses, as after the paper tracker's.
-    #[inline(always)]
+    ///
+    /// Not inlined: beside the paper model's period in one function it
+    /// cost every paper-model period about 30 instructions (register
+    /// pressure; bench-m4's `ctl_*` rows), which took `shape_memory`'s
+    /// worst period over the 2 000 budget. A Preisach period pays one call.
+    #[inline(never)]
     fn preisach_period(
         &mut self,
         mut step: Step,

@@ -288,11 +288,12 @@ pub fn compare(record: &Record, cfg: &FitConfig) -> Result<Comparison, String> {
     let chosen = usize::from(better_cycles && better_loads && far <= BUDGET);
     let why = if chosen == 1 {
         format!(
-            "the Preisach model predicts this record's held-out cycles {:.0} % better \
+            "The Preisach model predicts this record's held-out cycles {:.0} % better \
              ({:.5} against {:.5}{}{}) at {:.0} instructions a sample against {:.0} (its \
              feedforward's slowest period, a move across the whole range: {far}, within the \
              controller's budget of {BUDGET}); flash its blob, preisach.blob, as \
-             PAM_COEFFS_BLOB (firmware/README.md)",
+             PAM_COEFFS_BLOB (firmware/README.md). This compares predictions; how each \
+             tracks in a closed loop is host-sim's (host-sim/README.md)",
             100.0 * (1.0 - pr.heldout_rms / fit_e.heldout_rms),
             pr.heldout_rms,
             fit_e.heldout_rms,
