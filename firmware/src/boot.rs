@@ -140,7 +140,7 @@ fn boot_preisach(
         }
         _ => Feedforward::Preisach,
     };
-    let load_n = initial_load_n(&ModelLimits::of_preisach(&table));
+    let load_n = initial_load_n(&crate::controller::preisach::model_limits(&table));
     let controller = Controller::new_preisach(
         table,
         ControllerConfig {

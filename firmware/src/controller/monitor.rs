@@ -48,16 +48,6 @@ impl ModelLimits {
             max_pressure_mpa: p.points.max_pressure_mpa,
         }
     }
-
-    /// A Preisach table's: its first and last grid load, its top pressure.
-    pub fn of_preisach(table: &super::preisach::PreisachTable16) -> ModelLimits {
-        let last = super::preisach::PREISACH_LOADS.saturating_sub(1) as f32;
-        ModelLimits {
-            min_load_n: table.min_load_n,
-            max_load_n: table.min_load_n + last * table.load_step_n,
-            max_pressure_mpa: table.max_pressure_mpa,
-        }
-    }
 }
 
 /// Which sensor a [`Fault`] concerns.

@@ -41,6 +41,17 @@ pub type PreisachTable16 = PreisachTable<PREISACH_ROWS, PREISACH_LOADS>;
 pub const PREISACH_BLOB_LEN: usize =
     pam_core::preisach::blob::blob_len(PREISACH_ROWS, PREISACH_LOADS);
 
+/// What the monitor's rules take from a Preisach table: its first and
+/// last grid load and its top pressure.
+pub fn model_limits(table: &PreisachTable16) -> super::ModelLimits {
+    let last = PREISACH_LOADS.saturating_sub(1) as f32;
+    super::ModelLimits {
+        min_load_n: table.min_load_n,
+        max_load_n: table.min_load_n + last * table.load_step_n,
+        max_pressure_mpa: table.max_pressure_mpa,
+    }
+}
+
 /// What one period's [`PreisachModel::follow`] did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Followed {
@@ -82,7 +93,7 @@ impl PreisachModel {
     /// The calibrated load range (the table's first and last grid load)
     /// and the top pressure.
     pub fn limits(&self) -> super::ModelLimits {
-        super::ModelLimits::of_preisach(&self.table)
+        model_limits(&self.table)
     }
 
     /// The active load, N.

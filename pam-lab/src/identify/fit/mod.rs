@@ -64,7 +64,7 @@ pub use report::{validate, FitReport, PmaxSource, ShapeFit, Validation};
 
 /// Free parameters of the static shape fit keeps: its stroke table's
 /// interior knots at each table load and its ends' shifts.
-pub const STATIC_SHAPE_PARAMETERS: usize = static_shape::NV;
+pub const STATIC_SHAPE_PARAMETERS: usize = static_shape::variables::NV;
 pub use test_kind::{detect_test, slack_mask, TestKind};
 
 use pam_core::{Branch, Coeffs, LoadFamily, Params};

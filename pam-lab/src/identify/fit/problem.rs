@@ -1,6 +1,10 @@
 //! The least-squares problem: weighted pressure residuals of the training
 //! samples and the distance to the feasible set.
 
+use pam_core::effects::shape::table::at_fraction_f64;
+use pam_core::effects::ConstraintShape;
+
+use super::static_shape::variables::StaticShape;
 use super::*;
 
 /// Training samples, sorted by load so that the per-load model is computed
@@ -47,7 +51,7 @@ pub(super) struct Problem<'a> {
     pub(super) penalty_weight: f64,
     /// The stroke table's knots per load, when the shape stage found one
     /// (the paper's model refitted under it).
-    pub(super) table: Option<super::static_shape::StaticShape>,
+    pub(super) table: Option<StaticShape>,
 }
 
 impl Problem<'_> {
@@ -78,5 +82,53 @@ pub(super) fn param_scale(j: usize, fixed: &Fixed) -> f64 {
         4..=5 => 0.01,
         6 => 0.1,
         _ => 0.01 * fixed.pmax,
+    }
+}
+
+impl TrainSet {
+    /// Weighted residuals of `fam` with the stroke table of knots `nodes`
+    /// into `out[..len]`.
+    pub(super) fn table_residuals(
+        &self,
+        fam: &LoadFamily,
+        shape: Option<&StaticShape>,
+        out: &mut [f64],
+    ) {
+        self.table_residuals_of(fam, shape, 0..self.len(), out);
+    }
+
+    /// [`Self::table_residuals`] of the runs within `rows` (run-aligned,
+    /// `table_blocks` of the static-shape stage) into their slice `out`.
+    pub(super) fn table_residuals_of(
+        &self,
+        fam: &LoadFamily,
+        shape: Option<&StaticShape>,
+        rows: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) {
+        let (vp, vx) = (self.sigma_p * self.sigma_p, self.sigma_x * self.sigma_x);
+        let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
+        let runs = self
+            .runs
+            .iter()
+            .filter(|r| r.1 >= rows.start && r.2 <= rows.end);
+        for &(load, start, end) in runs {
+            let m = fam.at_load(load);
+            let k = shape.map(|s| at_fraction_f64(&s.nodes, (load - fam.min_load_n) / span));
+            let steps =
+                (load.clamp(fam.min_load_n, fam.max_load_n) - fam.min_load_n) / fam.load_step_n;
+            let at = shape.map_or([0.0; 4], |s| {
+                ConstraintShape::at_steps_f64(s.coefficients, steps).0
+            });
+            let samples = self.x[start..end]
+                .iter()
+                .zip(&self.branch[start..end])
+                .zip(&self.p[start..end]);
+            let slots = &mut out[start - rows.start..end - rows.start];
+            for (o, ((&x, &br), &pm)) in slots.iter_mut().zip(samples) {
+                let (p, slope) = ConstraintShape::pressure_and_slope_f64(at, k.as_ref(), &m, x, br);
+                *o = (p - pm) / (vp + slope * slope * vx).sqrt();
+            }
+        }
     }
 }

@@ -36,13 +36,13 @@
 //! information criterion on the training residuals
 //! (`n·ln(SSE₂/SSE₁) + k·ln n < 0`, `k` = the table's variables).
 
-use pam_core::effects::shape::table::{
-    at_fraction_f64, blend_f64, MIN_TABLE_SLOPE, TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS,
-};
-use pam_core::effects::shape::MAX_SHAPE_SLOPE;
+use pam_core::effects::shape::table::{blend_f64, TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS};
 use pam_core::effects::{ConstraintShape, StrokeTable};
 
 use super::*;
+
+pub(super) mod variables;
+use variables::{StaticShape, NT, NV};
 
 /// The share of an even split of the training samples' weight over the
 /// table loads below which a table load counts as not determined by them
@@ -51,53 +51,6 @@ use super::*;
 /// (half an even share); a load left out of a characterisation gets its
 /// neighbours' load noise, under 2 %.
 const UNREACHED_SHARE: f64 = 0.1;
-
-/// The table's variables: per load, the log-lengths of segments 2..K.
-pub(super) const NT: usize = TABLE_LOADS * (TABLE_SEGMENTS - 1);
-
-/// The stroke ends' variables after the table's: the root's and the far
-/// end's shift, each constant, per load step and per squared load step
-/// ([`ConstraintShape`]'s coefficients 4–9).
-pub(super) const NS: usize = 6;
-
-/// The stage's variables: the table's, then the ends'.
-pub(super) const NV: usize = NT + NS;
-
-/// The static shape the stage fits: the stroke table's knots per load and
-/// the polynomial part's coefficients ([`ConstraintShape::coefficients_f64`];
-/// the ends' shifts, the bulge and tilt left at zero: the table bends the
-/// stroke, the shifts move its ends, which the table keeps where the
-/// paper's load-linear stroke ends put them).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct StaticShape {
-    pub(super) nodes: [[f64; TABLE_KNOTS]; TABLE_LOADS],
-    pub(super) coefficients: [f64; 10],
-}
-
-impl StaticShape {
-    /// The shape of the stage's variables `w` ([`NV`]).
-    pub(super) fn of(w: &[f64]) -> StaticShape {
-        // Each within what pam-core accepts at every point the optimiser
-        // visits: the shifts at the minimum load within half the slope
-        // limit each (so their difference within it), the load terms within
-        // it (the chip scales the sum back at other loads, as
-        // `at_steps_f64` does here).
-        let limit = 0.999 * f64::from(MAX_SHAPE_SLOPE);
-        let mut coefficients = [0.0; 10];
-        for (j, (c, v)) in coefficients[4..].iter_mut().zip(&w[NT..NV]).enumerate() {
-            let bound = if j < 2 { 0.5 * limit } else { limit };
-            *c = bound * v.tanh();
-        }
-        StaticShape {
-            nodes: knots(&w[..NT]),
-            coefficients,
-        }
-    }
-}
-
-/// Each segment's least length in the fitted tables, a fraction of the
-/// stroke: pam-core's least slope with a margin for the `f32` rounding.
-const MIN_SEGMENT: f64 = 1.5 * MIN_TABLE_SLOPE as f64 / TABLE_SEGMENTS as f64;
 
 /// The paper's model refitted under the table.
 pub(super) struct Refit {
@@ -119,28 +72,6 @@ pub(super) struct ShapeStage {
     pub(super) refit: Option<Refit>,
     /// Residual evaluations spent.
     pub(super) evaluations: usize,
-}
-
-/// The knots per load of the variables `w`: segment lengths
-/// `MIN_SEGMENT + (1 − K·MIN_SEGMENT)·eʷ/Σeʷ` (the first segment's `w` is
-/// 0), accumulated.
-pub(super) fn knots(w: &[f64]) -> [[f64; TABLE_KNOTS]; TABLE_LOADS] {
-    let mut out = [[0.0; TABLE_KNOTS]; TABLE_LOADS];
-    for (i, node) in out.iter_mut().enumerate() {
-        let mut e = [1.0; TABLE_SEGMENTS];
-        for (j, v) in e.iter_mut().enumerate().skip(1) {
-            // Bounded: a segment at e^±30 of another is at its least length.
-            *v = w[i * (TABLE_SEGMENTS - 1) + j - 1].clamp(-30.0, 30.0).exp();
-        }
-        let sum: f64 = e.iter().sum();
-        let free = 1.0 - TABLE_SEGMENTS as f64 * MIN_SEGMENT;
-        let mut acc = 0.0;
-        for (j, k) in node.iter_mut().enumerate() {
-            acc += MIN_SEGMENT + free * e[j] / sum;
-            *k = acc;
-        }
-    }
-    out
 }
 
 /// `nodes` with each table load the training samples do not determine
@@ -182,52 +113,6 @@ fn fill_unreached(nodes: &mut [[f64; TABLE_KNOTS]; TABLE_LOADS], weights: &[f64;
 }
 
 impl TrainSet {
-    /// Weighted residuals of `fam` with the stroke table of knots `nodes`
-    /// into `out[..len]`.
-    pub(super) fn table_residuals(
-        &self,
-        fam: &LoadFamily,
-        shape: Option<&StaticShape>,
-        out: &mut [f64],
-    ) {
-        self.table_residuals_of(fam, shape, 0..self.len(), out);
-    }
-
-    /// [`Self::table_residuals`] of the runs within `rows` (run-aligned,
-    /// [`Self::table_blocks`]) into their slice `out`.
-    fn table_residuals_of(
-        &self,
-        fam: &LoadFamily,
-        shape: Option<&StaticShape>,
-        rows: std::ops::Range<usize>,
-        out: &mut [f64],
-    ) {
-        let (vp, vx) = (self.sigma_p * self.sigma_p, self.sigma_x * self.sigma_x);
-        let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
-        let runs = self
-            .runs
-            .iter()
-            .filter(|r| r.1 >= rows.start && r.2 <= rows.end);
-        for &(load, start, end) in runs {
-            let m = fam.at_load(load);
-            let k = shape.map(|s| at_fraction_f64(&s.nodes, (load - fam.min_load_n) / span));
-            let steps =
-                (load.clamp(fam.min_load_n, fam.max_load_n) - fam.min_load_n) / fam.load_step_n;
-            let at = shape.map_or([0.0; 4], |s| {
-                ConstraintShape::at_steps_f64(s.coefficients, steps).0
-            });
-            let samples = self.x[start..end]
-                .iter()
-                .zip(&self.branch[start..end])
-                .zip(&self.p[start..end]);
-            let slots = &mut out[start - rows.start..end - rows.start];
-            for (o, ((&x, &br), &pm)) in slots.iter_mut().zip(samples) {
-                let (p, slope) = ConstraintShape::pressure_and_slope_f64(at, k.as_ref(), &m, x, br);
-                *o = (p - pm) / (vp + slope * slope * vx).sqrt();
-            }
-        }
-    }
-
     /// Per table load, the training samples' blend weights on it
     /// ([`blend_f64`], the arithmetic the residuals use), summed: how many
     /// samples' worth of data its knots are fitted on.
@@ -430,7 +315,9 @@ pub(super) fn fit_static_shape(
 
 #[cfg(test)]
 mod tests {
+    use super::variables::knots;
     use super::*;
+    use pam_core::effects::shape::MAX_SHAPE_SLOPE;
 
     /// A training set without samples, the noise of a typical record.
     fn empty_train_set() -> TrainSet {
