@@ -265,11 +265,15 @@ fn run_load(k: usize) -> f32 {
 
 /// One pass of the representative run on a fresh copy of `base`: a plant
 /// that follows the model (pressure lags the command by a first-order lag
-/// of 3 periods, contraction is the active model's at that pressure). With
-/// `select`, the steps whose class (from a previous pass) matches are
-/// measured; the classes of this pass are written to `classes`.
+/// of 3 periods, contraction is the active model's at that pressure: the
+/// paper model's on the tracker's branch, or for a controller running the
+/// Preisach model `preisach`, that model's relays driven by the plant's
+/// pressure and load). With `select`, the steps whose class (from a
+/// previous pass) matches are measured; the classes of this pass are
+/// written to `classes`.
 fn run_controller(
     base: &Controller,
+    preisach: Option<&Preisach16Table>,
     bus: &SimBus,
     io: &mut SimIo<'_>,
     select: Option<(&[u8; RUN_LEN], u8)>,
@@ -279,13 +283,19 @@ fn run_controller(
     let cal = PressureCalibration::ADC12_0_1MPA;
     let refs = run_setpoints();
     let mut p = 0.15f32;
-    // The active model's contraction at `p` on `branch` (the tracker's own
-    // when `None`): the bench controller runs the paper model.
-    let contraction_at = |c: &Controller, p: f32, branch: Option<Branch>| match c.tracker() {
-        Some(t) => t.model().contraction(p, branch.unwrap_or(t.branch())),
-        None => fail("the bench controller runs the paper model"),
+    let mut relays = base.preisach().map(|m| *m.model());
+    // The plant's contraction at `p` under `load_n` (on `branch`, the
+    // tracker's own when `None`, for the paper model).
+    let mut contraction_at = |c: &Controller, p: f32, load_n: f32, branch: Option<Branch>| match (
+        c.tracker(),
+        relays.as_mut(),
+        preisach,
+    ) {
+        (Some(t), _, _) => t.model().contraction(p, branch.unwrap_or(t.branch())),
+        (None, Some(r), Some(table)) => r.step(table, p, load_n),
+        _ => fail("a Preisach controller's bench run needs its table"),
     };
-    let mut x = contraction_at(&c, p, Some(Branch::Contraction));
+    let mut x = contraction_at(&c, p, run_load(0), Some(Branch::Contraction));
     for (k, (&x_ref, class)) in refs.iter().zip(classes.iter_mut()).enumerate() {
         bus.pressure_counts.set(cal.to_counts(p));
         bus.contraction.set(x);
@@ -304,13 +314,51 @@ fn run_controller(
         if step.fault.is_some() {
             fail("controller faulted in the run");
         }
-        *class = u8::from(step.tracker.branch_switch.is_some()) * REVERSAL
+        // A reversal: the tracker switched branch (the paper model), or
+        // the set-point turned (the Preisach model, which has no branch).
+        let turned = k > 0 && k + 1 < RUN_LEN && {
+            let (before, after) = (refs[k] - refs[k - 1], refs[k + 1] - refs[k]);
+            before * after < 0.0
+        };
+        let reversal = match c.preisach() {
+            None => step.tracker.branch_switch.is_some(),
+            Some(_) => turned,
+        };
+        *class = u8::from(reversal) * REVERSAL
             + u8::from(
                 step.tracker.load_switch.is_some()
-                    || c.tracker().is_some_and(|t| !t.inverse_ready()),
+                    || c.tracker().is_some_and(|t| !t.inverse_ready())
+                    || c.preisach().is_some_and(|m| m.model().switching()),
             ) * LOAD_SWITCH;
         p += (step.pressure_cmd_mpa - p) / 3.0;
-        x = contraction_at(&c, p, None);
+        x = contraction_at(&c, p, run_load(k + 1), None);
+    }
+}
+
+/// The representative run of `base` once unmeasured (its periods'
+/// classes), then measured: every period (`ctl_run_NAME`), the reversal
+/// periods and the load-switch periods.
+fn controller_groups(
+    name: &str,
+    base: &Controller,
+    preisach: Option<&Preisach16Table>,
+    bus: &SimBus,
+    io: &mut SimIo<'_>,
+) {
+    let mut classes = [0u8; RUN_LEN];
+    run_controller(base, preisach, bus, io, None, &mut classes);
+    let sel = classes;
+    for (what, mask) in [
+        ("run", u8::MAX),
+        ("reversal", REVERSAL),
+        ("load_switch", LOAD_SWITCH),
+    ] {
+        let n = sel
+            .iter()
+            .filter(|&&c| mask == u8::MAX || c & mask != 0)
+            .count();
+        hprintln!("group ctl_{}_{} {}", what, name, n);
+        run_controller(base, preisach, bus, io, Some((&sel, mask)), &mut classes);
     }
 }
 
@@ -800,22 +848,16 @@ fn main() -> ! {
         let Ok(base) = Controller::new(coeffs, cfg, 200.0) else {
             fail("controller refused");
         };
-        let mut classes = [0u8; RUN_LEN];
-        run_controller(&base, &bus, &mut io, None, &mut classes);
-        let sel = classes;
-        for (what, mask) in [
-            ("run", u8::MAX),
-            ("reversal", REVERSAL),
-            ("load_switch", LOAD_SWITCH),
-        ] {
-            let n = sel
-                .iter()
-                .filter(|&&c| mask == u8::MAX || c & mask != 0)
-                .count();
-            hprintln!("group ctl_{}_{} {}", what, name, n);
-            run_controller(&base, &bus, &mut io, Some((&sel, mask)), &mut classes);
-        }
+        controller_groups(name, &base, None, &bus, &mut io);
     }
+    // The Preisach model pam flashes where it is the more accurate
+    // (`pam-lab compare`): bench-m4's identified table, its feedforward.
+    let mut cfg = ControllerConfig::DEFAULT;
+    cfg.feedforward = black_box(Feedforward::Preisach);
+    let Ok(base) = Controller::new_preisach(PREISACH16, cfg, 200.0) else {
+        fail("Preisach controller refused");
+    };
+    controller_groups("preisach", &base, Some(pr_table), &bus, &mut io);
 
     hprintln!(
         "ram paper_model_step {}",
