@@ -649,7 +649,12 @@ pub(super) fn evaluate_candidate(
 /// neither does, the lower RMS (the verdict shown).
 fn fits_static_model_stays(correction: (bool, f64), table: (bool, f64), margin: f64) -> bool {
     match (correction.0, table.0) {
-        (true, false) => table.1.is_finite() && !(correction.1 < (1.0 - margin) * table.1),
+        (true, false) => {
+            // A NaN RMS of the correction is no evidence against fit's; a
+            // NaN of fit's is no model to keep.
+            let clearly_better = correction.1 < (1.0 - margin) * table.1;
+            table.1.is_finite() && !clearly_better
+        }
         (false, true) => true,
         (true, true) => {
             // A NaN RMS is no evidence: fit's stays.
