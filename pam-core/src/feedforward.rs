@@ -41,8 +41,10 @@
 //! inverse is a few operations, the shape inverse
 //! [`SHAPE_INVERSE_STEPS`](crate::effects::shape::SHAPE_INVERSE_STEPS)
 //! safeguarded Newton steps, the memory's inverse as documented there (two branch
-//! inverses when a minor loop starts or closes, two Newton steps when only
-//! the rate effect's offset scale changed).
+//! inverses when a minor loop closes, two Newton steps when only the rate
+//! effect's offset scale changed, and with the width or rate effect a
+//! reversal's new loop starts its ends with two Newton steps and refines
+//! them over the next periods).
 //!
 //! ```
 //! use pam_core::effects::{Creep, Effects};
@@ -311,8 +313,9 @@ impl<const N: usize> InverseState<N> {
         self.memory.stack().points()
     }
 
-    /// The last period computed a minor loop's ends (two branch inverses)
-    /// instead of using the cached loop.
+    /// The last period computed a minor loop's ends (two branch inverses),
+    /// or started or went on searching for them (a reversal's new loop with
+    /// the width or rate effect), instead of using the cached loop.
     pub fn rebuilt_loop(&self) -> bool {
         self.memory.rebuilt_loop
     }
@@ -340,7 +343,7 @@ struct MemoryState<const N: usize> {
     /// the set-point backs off from it (so its minor loop stays cached).
     trial_valid: bool,
     /// The last feedforward computed a minor loop's ends (two branch
-    /// inverses) instead of using the cached loop.
+    /// inverses), or searched for them, instead of using the cached loop.
     rebuilt_loop: bool,
     /// What moving each point of `stacks` to another offset scale needs
     /// ([`MovedPoints`]), one per stack, in the same order.

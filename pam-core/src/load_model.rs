@@ -672,6 +672,26 @@ impl LoadModel {
         }
     }
 
+    /// Where the expansion branch with the offset scaled by `offset_scale`
+    /// (`CM(x) − scale·y_hys(x)`, eq. 26) crosses 0 MPa, estimated from the
+    /// branch's leading terms at `R_i`: `CM(x) ≈ q(R_i)·(x − R_i)` and
+    /// `y_hys(x) ≈ √(k²(Rx_i − R_i)(x − R_i))` put it at
+    /// `R_i + scale²·k²(Rx_i − R_i)/q(R_i)²`, within the stroke. Where a
+    /// Newton iteration for that crossing starts without the inverse tables
+    /// (below it the branch's slope is not positive: a step from elsewhere
+    /// does not reach it). Never NaN for a validated model.
+    pub(crate) fn zero_pressure_expansion_estimate(&self, offset_scale: f32) -> f32 {
+        let q = (self.a * self.root - self.b) * self.root + self.c;
+        let u = offset_scale * offset_scale * self.ellipse_k2 * (self.max_contraction - self.root)
+            / (q * q);
+        let x = self.root + u;
+        if x >= self.root && x <= self.max_contraction {
+            x
+        } else {
+            0.5 * (self.root + self.max_contraction)
+        }
+    }
+
     /// Whether the inverse tables are complete. A model whose tables a
     /// [`crate::Tracker`] is still building (after a load switch with a
     /// build budget) evaluates forward at full speed, but its

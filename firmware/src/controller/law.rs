@@ -123,7 +123,10 @@ impl Law {
 
     /// The memory feedforward computed a minor loop's ends on this period
     /// (two branch inverses, table-free and slower while the tracker builds
-    /// a new load's tables) instead of using its cached loop.
+    /// a new load's tables), or searched for them (a reversal's new loop
+    /// with the width or rate effect, in its first periods, which also move
+    /// its turning point for the first time), instead of using its cached
+    /// loop.
     pub fn rebuilt_loop(&self) -> bool {
         self.state.rebuilt_loop()
     }

@@ -51,9 +51,11 @@
 //! with effects adds pam-core's `ModelInverse` (bounded loops only: the
 //! shape's Newton steps and the memory's bisections of fixed length, `N/2 + 1`
 //! wipe-out passes) and builds [`TABLE_BUILD_UNITS_PER_STEP_EFFECTS`] units
-//! per step instead. No allocation, no loops over data, no panicking
-//! operation (no indexing by runtime values, no division by a runtime value
-//! other than in `f32`, which saturates to ±inf or NaN and is clamped).
+//! per step instead ([`TABLE_BUILD_UNITS_PER_STEP_MEMORY_RATE`] with the
+//! memory and the rate law together). No allocation, no loops over data, no
+//! panicking operation (no indexing by runtime values, no division by a
+//! runtime value other than in `f32`, which saturates to ±inf or NaN and is
+//! clamped).
 
 pub mod adapt;
 pub mod config;
@@ -79,7 +81,7 @@ use pam_core::{Branch, Coeffs, Tracker, Update};
 /// Work units of a load switch's inverse-table build per step (one forward
 /// evaluation or one Newton step each, see [`Tracker::set_build_budget`]),
 /// done at the end of the step; none on a step whose memory feedforward
-/// computed a minor loop's ends.
+/// computed or searched for a minor loop's ends (`Law::rebuilt_loop`).
 /// Chosen with bench-m4 so that the step's worst case stays under 2 000
 /// instructions; a complete build then takes at most
 /// `pam_core::load_model::BUILD_UNITS_MAX / 10` = 176 periods. The new
@@ -95,9 +97,22 @@ pub const TABLE_BUILD_UNITS_PER_STEP: u16 = 10;
 /// then takes at most `BUILD_UNITS_MAX / 4` = 440 periods.
 pub const TABLE_BUILD_UNITS_PER_STEP_EFFECTS: u16 = 4;
 
+/// [`TABLE_BUILD_UNITS_PER_STEP_EFFECTS`] for a feedforward that inverts
+/// the memory and the rate law together: the rate law changes the offset
+/// scale every period, so every period on a minor loop moves the loop's two
+/// ends (a Newton step each) and both its points to the new scale, about
+/// 400 instructions on the M4F over a loop served from its cache. With four
+/// units (100–120 instructions each) such periods of a build reached 2 072
+/// (bench-m4's `memory_rate`); with three they stay under 2 000, and a
+/// complete build takes at most `BUILD_UNITS_MAX / 3` = 587 periods.
+pub const TABLE_BUILD_UNITS_PER_STEP_MEMORY_RATE: u16 = 3;
+
 /// The table-build units per step for `feedforward`.
 fn table_build_units(feedforward: &Feedforward) -> u16 {
     match feedforward {
+        Feedforward::HysteresisEffects(e) if e.memory.is_some() && e.rate.is_some() => {
+            TABLE_BUILD_UNITS_PER_STEP_MEMORY_RATE
+        }
         Feedforward::HysteresisEffects(e)
             if e.rate.is_some() || e.creep.is_some() || e.width.is_some() || e.shape.is_some() =>
         {
@@ -397,9 +412,10 @@ impl Controller {
         let step = self.compute(sample, desired_contraction);
         // The new load's tables, after everything else of the period: a
         // period whose memory feedforward computed a minor loop's ends (two
-        // table-free inverses) leaves the build to the next one (and does
-        // not call it: a call for no units still costs its entry). A
-        // Preisach model makes a new load's coefficients in its own update.
+        // table-free inverses) or searched for them leaves the build to the
+        // next one (and does not call it: a call for no units still costs
+        // its entry). A Preisach model makes a new load's coefficients in
+        // its own update.
         if let Model::Paper { tracker, .. } = &mut self.model {
             if !tracker.inverse_ready() && !self.law.rebuilt_loop() {
                 tracker.advance_build(self.build_units);

@@ -152,17 +152,7 @@ fn newton_inverse(
 ) -> (f32, usize) {
     let k = branch.offset_sign() * clamp(offset_scale, 0.0, MAX_OFFSET_SCALE);
     let (mut lo, mut hi) = (model.root_contraction(), model.max_contraction());
-    // 2⁻²⁴ of the stroke, or two `f32` steps of the contraction where
-    // that is coarser (a Newton step at the answer is rounding).
-    // (`f32::max` without its NaN handling, a library call on the M4F:
-    // both are finite for a validated model.)
-    let stroke_resolution = (hi - lo) * SCALED_INVERSE_RESOLUTION;
-    let f32_resolution = 2.0 * f32::EPSILON * hi;
-    let resolution = if stroke_resolution >= f32_resolution {
-        stroke_resolution
-    } else {
-        f32_resolution
-    };
+    let resolution = inverse_resolution(model);
     let mut x = start;
     let rounding = SCALED_INVERSE_ROUNDING * model.max_pressure_mpa();
     let mut step_before = hi - lo;
@@ -203,6 +193,23 @@ fn newton_inverse(
         clamp(x, model.root_contraction(), model.max_contraction()),
         evaluations,
     )
+}
+
+/// The resolution at which [`branch_contraction`]'s iteration stops: 2⁻²⁴
+/// of the stroke, or two `f32` steps of the contraction where that is
+/// coarser (a Newton step at the answer is rounding).
+#[inline(always)]
+pub(crate) fn inverse_resolution(model: &LoadModel) -> f32 {
+    let (lo, hi) = (model.root_contraction(), model.max_contraction());
+    // (`f32::max` without its NaN handling, a library call on the M4F:
+    // both are finite for a validated model.)
+    let stroke_resolution = (hi - lo) * SCALED_INVERSE_RESOLUTION;
+    let f32_resolution = 2.0 * f32::EPSILON * hi;
+    if stroke_resolution >= f32_resolution {
+        stroke_resolution
+    } else {
+        f32_resolution
+    }
 }
 
 #[cfg(test)]
