@@ -134,7 +134,7 @@ pub struct InverseState<const N: usize> {
     /// state's 0 is the paper's scale).
     scale_minus_one: f32,
     /// The shape at the active load ready for its inverse, with the bits
-    /// of the load and of the parameters [`ConstraintShape::at_load`]
+    /// of the load and of the parameters [`ConstraintShape::at_load`](crate::effects::ConstraintShape::at_load)
     /// reads (minimum load, load step) it was made for.
     shape: Option<([u32; 3], ShapeInverse)>,
 }
