@@ -79,23 +79,23 @@ fn coulomb_rig_end_to_end_names_no_dynamic_effect_and_both_blobs_track() {
     );
 }
 
-/// Open (issue 32). diagnose chooses fit's static model with its stroke
-/// table here, the friction's minor loops on top at the edge of the
-/// evidence rule (the main job, seed 1: 135 %, 96 %, 90 % of fit's RMS on
-/// the three scenarios), and without them writes the static model fitted
-/// on the whole record (`pam-lab fit --holdout none`), while fit's blob
-/// leaves every fourth cycle out (120 %, 101 %, 103 % before fit's table
-/// optimiser took its steps from the normal equations). Written with fit's own hold-out, the blob is fit's
-/// (100 %), but at seed 3 diagnose picks the polynomial correction (128 %
-/// on this triangle) and on the Festo set whole holds drop out (10 cm,
-/// test 10: 13.2 → 15.9 kPa).
+/// On the coulomb rig the polynomial correction alone earns the static
+/// shape's place and fit's static model does not (its regime's cut), a
+/// few per cent apart on diagnose's held-out samples: a tie, so diagnose
+/// writes fit's static model and its blob tracks as fit's does. The
+/// correction written instead tracked this triangle at 128 % of fit's
+/// (seed 3), and the main job's at 130 % (seed 1). (The memory rig ties
+/// the same way at seed 1, 100 %; at seed 3 its diagnosed blob tracks this
+/// triangle at 132 % of fit's: open, issue 32.) Release only (about ten
+/// seconds).
 #[test]
-#[ignore = "open: diagnose's blob (fit's table and the memory) tracks this triangle at 0.0021 against fit's 0.0017 (issue 32)"]
-fn coulomb_rig_diagnosed_blob_tracks_no_worse_than_fits() {
+#[cfg_attr(debug_assertions, ignore)]
+fn where_the_static_shapes_tie_the_diagnosed_blob_tracks_no_worse_than_fits() {
     let outcome = coulomb_run();
     let r = &outcome.runs[0];
     let diag = r.diagnosed.as_ref().expect("boots").metrics.rms_error;
     let paper = r.paper.metrics.rms_error;
+    eprintln!("coulomb rig, triangle: fit {paper:.5}, diagnosed {diag:.5}");
     assert!(diag <= paper, "{diag} vs {paper}");
 }
 
