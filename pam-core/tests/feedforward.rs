@@ -267,6 +267,31 @@ fn turns() -> impl Strategy<Value = Vec<f32>> {
     })
 }
 
+/// The round trip's random cases as the property test draws them: each
+/// effect or none, the load, the set-point's turning points and speed.
+#[allow(clippy::type_complexity)]
+fn round_trip_cases() -> (
+    impl Strategy<Value = Option<NonLocalMemory>>,
+    impl Strategy<Value = Option<RateDependence>>,
+    impl Strategy<Value = Option<Creep>>,
+    impl Strategy<Value = Option<LoadDependentWidth>>,
+    impl Strategy<Value = Option<ConstraintShape>>,
+    std::ops::RangeInclusive<f32>,
+    impl Strategy<Value = Vec<f32>>,
+    std::ops::RangeInclusive<f32>,
+) {
+    (
+        memory(),
+        rate(),
+        creep(),
+        width(),
+        shape(),
+        100.0f32..=600.0,
+        turns(),
+        0.05f32..=1.0,
+    )
+}
+
 proptest! {
     // A fixed seed: the rate term's check is an envelope measured over
     // random models (below), not a bound that holds for every model, so
@@ -446,16 +471,7 @@ fn measure_the_rate_inverse_against_the_one_without_it() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(3);
-    let strategy = (
-        memory(),
-        rate(),
-        creep(),
-        width(),
-        shape(),
-        100.0f32..=600.0,
-        turns(),
-        0.05f32..=1.0,
-    );
+    let strategy = round_trip_cases();
     let mut ratios = Vec::new();
     let mut within = 0usize;
     for seed in 1..=seeds {
@@ -519,16 +535,7 @@ fn measure_the_rate_inverse_against_the_one_without_it() {
 fn measure_the_new_loops_first_periods() {
     use proptest::strategy::ValueTree;
     use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
-    let strategy = (
-        memory(),
-        rate(),
-        creep(),
-        width(),
-        shape(),
-        100.0f32..=600.0,
-        turns(),
-        0.05f32..=1.0,
-    );
+    let strategy = round_trip_cases();
     // [without a rate law, with one]
     let mut by_period = [
         [(); NEW_LOOP_PERIODS].map(|_| Vec::new()),
