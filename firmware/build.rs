@@ -73,6 +73,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                 }),
                 // Version 4's effect: not in this version-2 blob.
                 pressure_lag: None,
+                pressure_delay: None,
             };
             pam_core::blob::encode_v2(&pam_core::Params::DEFAULT, &effects).to_vec()
         }

@@ -85,13 +85,15 @@ def festo_table():
         "the reference surface (30 coefficients, least squares, no hysteresis) fitted to the same "
         "training samples. \"the cubic alone\" is fit with `--no-static-shape`. \"timing\" is the "
         "shift of the measured pressure that diagnose's model matches best (`timing` line), and "
-        "what it cuts.",
+        "what it cuts. \"delay\" is the pressure delay diagnose's model carries, where it names one, "
+        "and \"reference, delayed\" the reference surface fitted and judged with the pressure taken "
+        "that delay earlier: how much of the model's lead over the reference is the delay's.",
         "",
         f"`pam-lab/measure.sh --festo DIR` ({stamp}); the commands it runs for each length are "
         "in pam-lab/README.md.",
         "",
-        "| muscle | training samples | test-10 samples | fit (kPa) | the cubic alone (kPa) | diagnose (kPa) | reference (kPa) | fit / reference | diagnose / reference | diagnose named | timing | fit (s) | diagnose (s) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| muscle | training samples | test-10 samples | fit (kPa) | the cubic alone (kPa) | diagnose (kPa) | reference (kPa) | fit / reference | diagnose / reference | diagnose named | delay | reference, delayed (kPa) | timing | fit (s) | diagnose (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for L in (10, 15, 20, 25, 30, 40):
         fit = load(os.path.join(d, f"fit_{L}", "model.json"))["fit"]
@@ -109,10 +111,14 @@ def festo_table():
             if lag
             else "-"
         )
+        delay = (r.get("effects") or {}).get("pressure_delay")
+        delay_ms = f"{1000 * delay['delay_s']:.1f} ms" if delay else "-"
+        ref_delayed = dv.get("reference_delayed_rms_mpa")
+        ref_delayed = f"{1000 * ref_delayed:.1f}" if ref_delayed is not None else "-"
         out.append(
             f"| {L} cm | {fit['training_samples']} | {v['model']['total']['samples']} | {1000 * p_fit:.1f} | "
             f"{1000 * p_cubic:.1f} | {1000 * p_diag:.1f} | {1000 * ref:.1f} | {p_fit / ref:.2f} | "
-            f"{p_diag / dv['reference_rms_mpa']:.2f} | {', '.join(r['effects_added']) or 'none'} | {timing} | "
+            f"{p_diag / dv['reference_rms_mpa']:.2f} | {', '.join(r['effects_added']) or 'none'} | {delay_ms} | {ref_delayed} | {timing} | "
             f"{seconds(f'festo/fit_{L}'):.1f} | {seconds(f'festo/diag_{L}'):.1f} |"
         )
     return "\n".join(out)

@@ -129,6 +129,7 @@ pub const MEMORY_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
     width: None,
     shape: None,
     pressure_lag: None,
+    pressure_delay: None,
 };
 
 /// The effects of the version-2 blob the `qemu-effects-blob` self-test
@@ -159,6 +160,7 @@ pub const EFFECTS_BLOB_EFFECTS: pam_core::Effects = pam_core::Effects {
     }),
     // Version 4's: not in this version-2 blob.
     pressure_lag: None,
+    pressure_delay: None,
 };
 
 /// Run the scenario with the controller built from `blob` and the given
@@ -452,6 +454,7 @@ mod tests {
             width: acc.width.or(e.width),
             shape: acc.shape.or(e.shape),
             pressure_lag: acc.pressure_lag.or(e.pressure_lag),
+            pressure_delay: acc.pressure_delay.or(e.pressure_delay),
         });
         let paper = blob();
         for (name, effects) in cases.iter().copied().chain([("all", all)]) {

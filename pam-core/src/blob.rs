@@ -56,6 +56,17 @@
 //! lag; the lag's flag in a version 2 or 3 blob, or its absence in a
 //! version 4 one, is refused.
 //!
+//! # Version 5: a model with a pressure delay
+//!
+//! Version 4's layout (the lag's time constant 0 and its flag clear when
+//! the model has no lag) with the payload extended by the pressure delay
+//! ([`crate::effects::PressureDelay`], flag [`FLAG_PRESSURE_DELAY`]),
+//! [`BLOB_V5_LEN`] = 428 bytes: bytes 0..420 as version 4 (version field
+//! 5, payload length [`PAYLOAD_V5_LEN`]), 420..424 `delay_s`, 424..428 the
+//! CRC-32 of bytes 0..424. Written only for a model with the delay; the
+//! delay's flag in an earlier version, or its absence in version 5, is
+//! refused.
+//!
 //! An effect whose flag is clear has its fields written as zeros, and they
 //! must be zero to decode (one encoding per model). [`decode_model`] reads
 //! both versions (version 1: no effects), checks framing and CRC and
@@ -66,8 +77,8 @@ use crate::coeffs::Coeffs;
 use crate::effects::shape::table::{TABLE_KNOTS, TABLE_LOADS};
 use crate::effects::shape::StrokeTable;
 use crate::effects::{
-    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, PressureLag,
-    RateDependence,
+    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, PressureDelay,
+    PressureLag, RateDependence,
 };
 use crate::error::Error;
 use crate::params::{CriticalPoints, Params, Point};
@@ -92,9 +103,16 @@ pub const FLAG_WIDTH: u32 = 1 << 3;
 pub const FLAG_SHAPE: u32 = 1 << 4;
 /// Effect flag: the pressure lag (version 4 only).
 pub const FLAG_PRESSURE_LAG: u32 = 1 << 5;
+/// Effect flag: the pressure delay (version 5 only).
+pub const FLAG_PRESSURE_DELAY: u32 = 1 << 6;
 /// Every flag this crate knows.
-pub const KNOWN_FLAGS: u32 =
-    FLAG_MEMORY | FLAG_RATE | FLAG_CREEP | FLAG_WIDTH | FLAG_SHAPE | FLAG_PRESSURE_LAG;
+pub const KNOWN_FLAGS: u32 = FLAG_MEMORY
+    | FLAG_RATE
+    | FLAG_CREEP
+    | FLAG_WIDTH
+    | FLAG_SHAPE
+    | FLAG_PRESSURE_LAG
+    | FLAG_PRESSURE_DELAY;
 /// `f32` fields of the effects in a version-2 payload.
 pub const EFFECT_FIELDS: usize = 21;
 /// Version-2 payload length, bytes: parameters, flags, effect fields.
@@ -115,8 +133,14 @@ pub const BLOB_VERSION_V4: u16 = 4;
 pub const PAYLOAD_V4_LEN: usize = PAYLOAD_V3_LEN + 4;
 /// Version-4 blob length, bytes.
 pub const BLOB_V4_LEN: usize = 8 + PAYLOAD_V4_LEN + 4;
+/// Format version 5 (version 4 and the pressure delay).
+pub const BLOB_VERSION_V5: u16 = 5;
+/// Version-5 payload length, bytes.
+pub const PAYLOAD_V5_LEN: usize = PAYLOAD_V4_LEN + 4;
+/// Version-5 blob length, bytes.
+pub const BLOB_V5_LEN: usize = 8 + PAYLOAD_V5_LEN + 4;
 /// The longest blob of any version this crate reads, bytes.
-pub const MAX_BLOB_LEN: usize = BLOB_V4_LEN;
+pub const MAX_BLOB_LEN: usize = BLOB_V5_LEN;
 /// Number of `f32` fields in the payload.
 pub const PAYLOAD_FIELDS: usize = Params::FIELD_COUNT;
 /// Payload length, bytes.
@@ -301,6 +325,9 @@ fn effect_fields(e: &Effects) -> (u32, [f32; EFFECT_FIELDS]) {
     if e.pressure_lag.is_some() {
         flags |= FLAG_PRESSURE_LAG;
     }
+    if e.pressure_delay.is_some() {
+        flags |= FLAG_PRESSURE_DELAY;
+    }
     (flags, f)
 }
 
@@ -354,8 +381,9 @@ fn effects_from(flags: u32, f: &[f32; EFFECT_FIELDS]) -> Result<Effects, Error> 
             end_shift_per_step_sq: s[9],
             table: StrokeTable::NEUTRAL,
         }),
-        // Its field is after the table (version 4): read there.
+        // Their fields are after the table (versions 4 and 5): read there.
         pressure_lag: None,
+        pressure_delay: None,
     };
     Ok(e)
 }
@@ -434,9 +462,34 @@ fn write_v3_part(
 /// [`encode_model`] never writes in this version).
 pub fn encode_v4(params: &Params, effects: &Effects) -> [u8; BLOB_V4_LEN] {
     let mut out = [0u8; BLOB_V4_LEN];
-    let mut at = write_v3_part(&mut out, params, effects, BLOB_VERSION_V4, PAYLOAD_V4_LEN);
+    let at = write_v4_part(&mut out, params, effects, BLOB_VERSION_V4, PAYLOAD_V4_LEN);
+    seal(&mut out, at);
+    out
+}
+
+/// Write the version-4 part (the version-3 part and the lag's time
+/// constant, 0 without the lag) into `out`; returns where it ends.
+fn write_v4_part(
+    out: &mut [u8],
+    params: &Params,
+    effects: &Effects,
+    version: u16,
+    payload_len: usize,
+) -> usize {
+    let at = write_v3_part(out, params, effects, version, payload_len);
     let tau = effects.pressure_lag.map_or(0.0, |l| l.time_constant_s);
     out[at..at + 4].copy_from_slice(&tau.to_le_bytes());
+    at + 4
+}
+
+/// Encode `params` and `effects` in format version 5: version 4 and the
+/// pressure delay (0 without it, which [`encode_model`] never writes in
+/// this version).
+pub fn encode_v5(params: &Params, effects: &Effects) -> [u8; BLOB_V5_LEN] {
+    let mut out = [0u8; BLOB_V5_LEN];
+    let mut at = write_v4_part(&mut out, params, effects, BLOB_VERSION_V5, PAYLOAD_V5_LEN);
+    let d = effects.pressure_delay.map_or(0.0, |d| d.delay_s);
+    out[at..at + 4].copy_from_slice(&d.to_le_bytes());
     at += 4;
     seal(&mut out, at);
     out
@@ -444,13 +497,16 @@ pub fn encode_v4(params: &Params, effects: &Effects) -> [u8; BLOB_V4_LEN] {
 
 /// The blob of a model in the first version that holds it: version 1
 /// without effects, version 2 with effects, version 3 with a shape whose
-/// stroke table is not the identity, version 4 with the pressure lag. The
-/// bytes and their length.
+/// stroke table is not the identity, version 4 with the pressure lag,
+/// version 5 with the pressure delay. The bytes and their length.
 pub fn encode_model(params: &Params, effects: &Effects) -> ([u8; MAX_BLOB_LEN], usize) {
     let mut out = [0u8; MAX_BLOB_LEN];
     let len = if *effects == Effects::NONE {
         out[..BLOB_LEN].copy_from_slice(&encode(params));
         BLOB_LEN
+    } else if effects.pressure_delay.is_some() {
+        out[..BLOB_V5_LEN].copy_from_slice(&encode_v5(params, effects));
+        BLOB_V5_LEN
     } else if effects.pressure_lag.is_some() {
         out[..BLOB_V4_LEN].copy_from_slice(&encode_v4(params, effects));
         BLOB_V4_LEN
@@ -475,7 +531,7 @@ pub fn framed_len(bytes: &[u8]) -> Option<usize> {
     let version = u16::from_le_bytes([head[4], head[5]]);
     if !matches!(
         version,
-        BLOB_VERSION | BLOB_VERSION_V2 | BLOB_VERSION_V3 | BLOB_VERSION_V4
+        BLOB_VERSION | BLOB_VERSION_V2 | BLOB_VERSION_V3 | BLOB_VERSION_V4 | BLOB_VERSION_V5
     ) {
         return None;
     }
@@ -491,7 +547,8 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
     }
     match u16::from_le_bytes([bytes[4], bytes[5]]) {
         BLOB_VERSION => decode_params(bytes).map(|p| (p, Effects::NONE)),
-        version @ (BLOB_VERSION_V2 | BLOB_VERSION_V3 | BLOB_VERSION_V4) => {
+        version @ (BLOB_VERSION_V2 | BLOB_VERSION_V3 | BLOB_VERSION_V4 | BLOB_VERSION_V5) => {
+            let v5 = version == BLOB_VERSION_V5;
             let v4 = version == BLOB_VERSION_V4;
             let v3 = version == BLOB_VERSION_V3;
             checked_body(
@@ -499,7 +556,8 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
                 match version {
                     BLOB_VERSION_V2 => PAYLOAD_V2_LEN,
                     BLOB_VERSION_V3 => PAYLOAD_V3_LEN,
-                    _ => PAYLOAD_V4_LEN,
+                    BLOB_VERSION_V4 => PAYLOAD_V4_LEN,
+                    _ => PAYLOAD_V5_LEN,
                 },
             )?;
             let word = |i: usize| [bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]];
@@ -514,12 +572,18 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
                 *v = f32::from_le_bytes(word(p_end + 4 + 4 * k));
             }
             let mut effects = effects_from(flags, &ef)?;
-            if (flags & FLAG_PRESSURE_LAG != 0) != v4 {
+            let lag = flags & FLAG_PRESSURE_LAG != 0;
+            if lag != v4 && !(v5 && lag) {
                 return Err(Error::Blob(
-                    "the pressure lag's flag is set exactly in a version-4 blob",
+                    "the pressure lag's flag is set in every version-4 blob and only in versions 4 and 5",
                 ));
             }
-            if v3 || v4 {
+            if (flags & FLAG_PRESSURE_DELAY != 0) != v5 {
+                return Err(Error::Blob(
+                    "the pressure delay's flag is set exactly in a version-5 blob",
+                ));
+            }
+            if v3 || v4 || v5 {
                 let mut table = StrokeTable::NEUTRAL;
                 let mut at = 8 + PAYLOAD_V2_LEN;
                 for v in table.knots.iter_mut().flatten() {
@@ -528,17 +592,28 @@ pub fn decode_model_params(bytes: &[u8]) -> Result<(Params, Effects), Error> {
                 }
                 match effects.shape.as_mut() {
                     Some(shape) if !table.is_neutral() => shape.table = table,
-                    // Version 4 holds the identity's knots without a table.
-                    _ if v4 && table.is_neutral() => {}
+                    // Versions 4 and 5 hold the identity's knots without a table.
+                    _ if (v4 || v5) && table.is_neutral() => {}
                     _ => {
                         return Err(Error::Blob(
                             "a version-3 blob without a shape's stroke table (write version 2)",
                         ))
                     }
                 }
-                if v4 {
-                    effects.pressure_lag = Some(PressureLag {
-                        time_constant_s: f32::from_le_bytes(word(at)),
+                if v4 || v5 {
+                    let tau = f32::from_le_bytes(word(at));
+                    at += 4;
+                    if lag {
+                        effects.pressure_lag = Some(PressureLag {
+                            time_constant_s: tau,
+                        });
+                    } else if tau.to_bits() != 0 {
+                        return Err(Error::Blob("fields of an absent effect are not zero"));
+                    }
+                }
+                if v5 {
+                    effects.pressure_delay = Some(PressureDelay {
+                        delay_s: f32::from_le_bytes(word(at)),
                     });
                 }
             }
@@ -705,6 +780,71 @@ mod tests {
     }
 
     #[test]
+    fn a_model_with_a_pressure_delay_is_version_5_with_or_without_a_lag() {
+        let p = Params::DEFAULT;
+        let delay = Some(PressureDelay { delay_s: 0.006 });
+        let lag = Some(PressureLag {
+            time_constant_s: 0.015,
+        });
+        for e in [
+            Effects {
+                pressure_delay: delay,
+                ..Effects::NONE
+            },
+            Effects {
+                pressure_delay: delay,
+                ..with_a_table()
+            },
+            Effects {
+                pressure_delay: delay,
+                pressure_lag: lag,
+                ..with_every_effect()
+            },
+        ] {
+            let (b, n) = encode_model(&p, &e);
+            assert_eq!(n, BLOB_V5_LEN);
+            assert_eq!(framed_len(&b), Some(BLOB_V5_LEN));
+            let (c, back) = decode_model(&b[..n]).unwrap();
+            assert_eq!((c.params(), back), (&p, e));
+            for i in (0..BLOB_V5_LEN * 8).step_by(7) {
+                let mut x = b;
+                x[i / 8] ^= 1 << (i % 8);
+                assert!(decode_model(&x[..n]).is_err(), "bit {i}");
+            }
+        }
+        // Without the delay version 5 is refused (one encoding per model);
+        // so are the delay's flag in version 4, a delay out of range, and a
+        // lag's time constant written without its flag.
+        assert!(decode_model(&encode_v5(&p, &with_a_table())).is_err());
+        let both = Effects {
+            pressure_delay: delay,
+            pressure_lag: lag,
+            ..Effects::NONE
+        };
+        assert!(decode_model(&encode_v4(&p, &both)).is_err());
+        let bad = Effects {
+            pressure_delay: Some(PressureDelay { delay_s: 0.5 }),
+            ..Effects::NONE
+        };
+        assert!(decode_model(&encode_v5(&p, &bad)).is_err());
+        let mut b = encode_v5(&p, &both);
+        let flags_at = 8 + PAYLOAD_LEN;
+        let flags = u32::from_le_bytes([
+            b[flags_at],
+            b[flags_at + 1],
+            b[flags_at + 2],
+            b[flags_at + 3],
+        ]) & !FLAG_PRESSURE_LAG;
+        b[flags_at..flags_at + 4].copy_from_slice(&flags.to_le_bytes());
+        let body = BLOB_V5_LEN - 4;
+        seal(&mut b, body);
+        assert_eq!(
+            decode_model(&b),
+            Err(Error::Blob("fields of an absent effect are not zero"))
+        );
+    }
+
+    #[test]
     fn a_version_3_blob_is_checked_like_the_others() {
         let p = Params::DEFAULT;
         let blob = encode_v3(&p, &with_a_table());
@@ -763,6 +903,7 @@ mod tests {
                 table: StrokeTable::NEUTRAL,
             }),
             pressure_lag: None,
+            pressure_delay: None,
         }
     }
 
@@ -777,6 +918,7 @@ mod tests {
                 width: all.width.filter(|_| mask & FLAG_WIDTH != 0),
                 shape: all.shape.filter(|_| mask & FLAG_SHAPE != 0),
                 pressure_lag: None,
+                pressure_delay: None,
             };
             let blob = encode_v2(&Params::DEFAULT, &e);
             assert_eq!(
@@ -825,9 +967,19 @@ mod tests {
     #[test]
     fn unknown_flags_stray_fields_and_invalid_effects_are_refused() {
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
-        b[64] = 1 << 6;
+        b[64] = 1 << 7;
         refresh_crc(&mut b);
         assert_eq!(decode_model(&b), Err(Error::Blob("unknown effect flags")));
+        // The pressure delay's flag without its field (version 5's).
+        let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
+        b[64] = 1 << 6;
+        refresh_crc(&mut b);
+        assert_eq!(
+            decode_model(&b),
+            Err(Error::Blob(
+                "the pressure delay's flag is set exactly in a version-5 blob"
+            ))
+        );
         // The pressure lag's flag without its field (version 4's).
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);
         b[64] = 1 << 5;
@@ -835,7 +987,7 @@ mod tests {
         assert_eq!(
             decode_model(&b),
             Err(Error::Blob(
-                "the pressure lag's flag is set exactly in a version-4 blob"
+                "the pressure lag's flag is set in every version-4 blob and only in versions 4 and 5"
             ))
         );
         let mut b = encode_v2(&Params::DEFAULT, &Effects::NONE);

@@ -35,7 +35,10 @@
 //!    (the lag's next output) is the one the model needs, in closed form
 //!    from the lag state
 //!    ([`PressureLag::command_mpa`](crate::effects::PressureLag::command_mpa)), within `[0, Pmax]`;
-//!    the lag advances with the command.
+//!    the lag advances with the command. A pressure delay adds its delay
+//!    to the lag's time constant: the first-order lead of a delay, which
+//!    needs the set-point's future to be exact
+//!    ([`PressureDelay`](crate::effects::PressureDelay)).
 //!
 //! Fixed-size state, no allocation, no panic, bounded work: the creep
 //! inverse is a few operations, the shape inverse
@@ -79,7 +82,7 @@
 use crate::branch::Branch;
 use crate::effects::memory::{branch_pressure_mpa, MovedPoints};
 use crate::effects::{
-    Creep, CreepState, Effects, NonLocalMemory, PressureLagState, RateState, Reversal,
+    Creep, CreepState, Effects, NonLocalMemory, PressureLag, PressureLagState, RateState, Reversal,
     ReversalStack, ShapeInverse, MAX_OFFSET_SCALE, MAX_STEP_S,
 };
 use crate::error::Error;
@@ -110,7 +113,12 @@ pub struct ModelInverse {
     dt_s: f32,
     /// The creep lag's gain over one period ([`Creep::lag_gain`]).
     creep_lag_gain: f32,
-    /// The pressure lag's gain over one period
+    /// The lead the command takes: the pressure lag's, with the pressure
+    /// delay's added to its time constant
+    /// ([`PressureDelay::lead_time_constant_s`](crate::effects::PressureDelay::lead_time_constant_s));
+    /// `None` without either.
+    lead: Option<PressureLag>,
+    /// The lead's gain over one period
     /// ([`PressureLag::lag_gain`](crate::effects::PressureLag::lag_gain)).
     pressure_lag_gain: f32,
     /// Whether the shape has a stroke table that is not the identity
@@ -151,11 +159,21 @@ impl ModelInverse {
         if !(dt_s > 0.0 && dt_s <= MAX_STEP_S) {
             return Err(Error::OutOfRange("dt_s", "must be in (0, MAX_STEP_S] s"));
         }
+        let delay_s = effects
+            .pressure_delay
+            .map_or(0.0, |d| d.lead_time_constant_s());
+        let lead = match (effects.pressure_lag, effects.pressure_delay) {
+            (None, None) => None,
+            (lag, _) => Some(PressureLag {
+                time_constant_s: lag.map_or(0.0, |l| l.time_constant_s) + delay_s,
+            }),
+        };
         Ok(ModelInverse {
             effects,
             dt_s,
             creep_lag_gain: effects.creep.map_or(0.0, |c| c.lag_gain(dt_s)),
-            pressure_lag_gain: effects.pressure_lag.map_or(0.0, |l| l.lag_gain(dt_s)),
+            lead,
+            pressure_lag_gain: lead.map_or(0.0, |l| l.lag_gain(dt_s)),
             shape_table: effects.shape.is_some_and(|s| !s.table.is_neutral()),
         })
     }
@@ -258,7 +276,7 @@ impl ModelInverse {
                 r.max_rate_mpa_per_s,
             );
         }
-        match &self.effects.pressure_lag {
+        match &self.lead {
             Some(l) => l.command_mpa(
                 &mut state.pressure_lag,
                 p_mpa,

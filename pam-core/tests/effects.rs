@@ -47,6 +47,7 @@ fn all_effects() -> Effects {
         pressure_lag: Some(pam_core::effects::PressureLag {
             time_constant_s: 0.02,
         }),
+        pressure_delay: Some(pam_core::effects::PressureDelay { delay_s: 0.006 }),
     }
 }
 

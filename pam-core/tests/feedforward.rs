@@ -5,8 +5,8 @@
 //! finite and within `[0, Pmax]` on any input.
 
 use pam_core::effects::{
-    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, PressureLag,
-    RateDependence, MAX_OFFSET_SCALE,
+    ConstraintShape, Creep, Effects, LoadDependentWidth, NonLocalMemory, PressureDelay,
+    PressureLag, RateDependence, MAX_OFFSET_SCALE,
 };
 use pam_core::{Branch, InverseState, ModelInverse, Simulator, TrackerConfig};
 use proptest::prelude::*;
@@ -314,7 +314,7 @@ proptest! {
         turns in turns(),
         speed in 0.05f32..=1.0,
     ) {
-        let effects = Effects { memory, rate, creep, width, shape, pressure_lag: None };
+        let effects = Effects { memory, rate, creep, width, shape, pressure_lag: None, pressure_delay: None };
         let r = round_trip_by_period(effects, effects, load_n, &turns, speed);
         prop_assume!(r.is_some(), "a pressure outside [0, Pmax] is needed");
         let Some(RoundTrip { worst, rms, new_loop }) = r else { return Ok(()) };
@@ -408,11 +408,13 @@ proptest! {
         width in width(),
         shape in shape(),
         lag in proptest::option::of(0.001f32..=0.5),
+        delay in proptest::option::of(0.0005f32..=0.1),
         load in any_f32(),
         xs in proptest::collection::vec((any_f32(), any::<bool>(), any::<bool>()), 1..40),
     ) {
         let pressure_lag = lag.map(|time_constant_s| PressureLag { time_constant_s });
-        let effects = Effects { memory, rate, creep, width, shape, pressure_lag };
+        let pressure_delay = delay.map(|delay_s| PressureDelay { delay_s });
+        let effects = Effects { memory, rate, creep, width, shape, pressure_lag, pressure_delay };
         let c = coeffs();
         let inverse = ModelInverse::new(effects, DT_S).unwrap();
         let mut state = InverseState::<4>::default();
@@ -439,6 +441,72 @@ fn without_effects_the_inverse_is_the_paper_model() {
             assert_eq!(p, m.pressure_mpa(x, br));
         }
     }
+}
+
+/// A pressure delay leads the command as a lag of the delay's length does
+/// (the delay's first-order lead: the feedforward has no future
+/// set-point), and with a lag beside it as one lag of the two summed: on a
+/// ramp the command runs ahead of the model's pressure by the ramp's rate
+/// times the delay.
+#[test]
+fn a_pressure_delay_leads_the_command_as_a_lag_of_its_length() {
+    let c = coeffs();
+    let m = c.load_model(300.0).unwrap();
+    let with = |pressure_lag, pressure_delay| {
+        let inverse = ModelInverse::new(
+            Effects {
+                pressure_lag,
+                pressure_delay,
+                ..Effects::NONE
+            },
+            DT_S,
+        )
+        .unwrap();
+        let mut state = InverseState::<4>::default();
+        (0..=400)
+            .map(|k| {
+                let x = m.root_contraction()
+                    + (m.max_contraction() - m.root_contraction()) * 0.2 * (1.0 + k as f32 / 400.0);
+                (
+                    inverse.pressure_mpa(
+                        &mut state,
+                        c.params(),
+                        &m,
+                        300.0,
+                        x,
+                        Branch::Contraction,
+                        false,
+                    ),
+                    m.pressure_mpa(x, Branch::Contraction),
+                )
+            })
+            .collect::<Vec<_>>()
+    };
+    let delayed = with(None, Some(PressureDelay { delay_s: 0.012 }));
+    let lagged = with(
+        Some(PressureLag {
+            time_constant_s: 0.012,
+        }),
+        None,
+    );
+    assert_eq!(delayed, lagged);
+    let both = with(
+        Some(PressureLag {
+            time_constant_s: 0.008,
+        }),
+        Some(PressureDelay { delay_s: 0.004 }),
+    );
+    for (a, b) in both.iter().zip(&lagged) {
+        assert!((a.0 - b.0).abs() < 1e-6, "{a:?} {b:?}");
+    }
+    // Ahead of the model's pressure by about its rate times the delay.
+    let rate = (delayed[300].1 - delayed[299].1) / DT_S;
+    let lead = delayed[300].0 - delayed[300].1;
+    assert!(
+        (lead - 0.012 * rate).abs() < 0.1 * (0.012 * rate).abs(),
+        "{lead} vs {}",
+        0.012 * rate
+    );
 }
 
 #[test]
@@ -492,6 +560,7 @@ fn measure_the_rate_inverse_against_the_one_without_it() {
                 width,
                 shape,
                 pressure_lag: None,
+                pressure_delay: None,
             };
             let Some((_, rms)) = round_trip(effects, load_n, &turns, speed) else {
                 continue;
@@ -560,6 +629,7 @@ fn measure_the_new_loops_first_periods() {
                 width,
                 shape,
                 pressure_lag: None,
+                pressure_delay: None,
             };
             let Some(r) = round_trip_by_period(effects, effects, load_n, &turns, speed) else {
                 continue;

@@ -514,6 +514,7 @@ pub fn adapt_model(
             (e.width.is_some(), "load-dependent width"),
             (e.shape.is_some(), "constraint shape"),
             (e.pressure_lag.is_some(), "pressure lag"),
+            (e.pressure_delay.is_some(), "pressure delay"),
         ]
         .into_iter()
         .filter_map(|(on, name)| on.then_some(name))

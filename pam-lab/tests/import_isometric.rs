@@ -15,11 +15,23 @@ use pam_lab::synth::chou_hannaford_force_n;
 
 /// The pressure sensor's view of the muscle: `None`, the muscle's own
 /// pressure; or a sensor at the valve, ahead of the muscle by a line of
-/// time constant `lag_s`, where the valve's pulses ring.
+/// time constant `lag_s`, where the valve's pulses ring; or a force
+/// answering the sensor's pressure `delay_s` later (a load cell's filter,
+/// a logger sampling its channels apart). `cycles`: fill-hold-vent cycles
+/// per file (1: one over the file; more, each that much faster).
 #[derive(Clone, Copy)]
 struct Sensor {
     lag_s: Option<f64>,
+    delay_s: Option<f64>,
+    cycles: f64,
 }
+
+/// The muscle's own pressure read at once, one cycle a file.
+const AT_ONCE: Sensor = Sensor {
+    lag_s: None,
+    delay_s: None,
+    cycles: 1.0,
+};
 
 /// One test at one held length: fill to 0.62 MPa, hold, vent to a floor;
 /// 1.8 ms samples. `reset_at`: the logger's clock restarts at that sample.
@@ -41,17 +53,26 @@ fn write_test(path: &Path, eps: f64, seed: u64, reset_at: Option<usize>, sensor:
     let n = 8000;
     let mut t_clock = 0.0;
     let mut muscle: Option<f64> = None;
-    for i in 0..n {
-        let t = i as f64 * 0.0018;
-        let (mut p, filling) = if t < 7.0 {
-            (0.62 * (t / 7.0), true)
+    let period = n as f64 * 0.0018;
+    let profile = |t: f64| {
+        let t = if t > 0.0 {
+            (t * sensor.cycles).rem_euclid(period)
+        } else {
+            0.0
+        };
+        if t < 7.0 {
+            (0.62 * (t.max(0.0) / 7.0), true)
         } else if t < 9.0 {
             (0.62, true)
         } else {
             (0.07 + 0.55 * (-(t - 9.0) / 1.2).exp(), false)
-        };
+        }
+    };
+    for i in 0..n {
+        let t = i as f64 * 0.0018;
+        let (mut p, filling) = profile(t);
         let p_muscle = match sensor.lag_s {
-            None => p,
+            None => sensor.delay_s.map_or(p, |d| profile(t - d).0),
             Some(tau) => {
                 if !(7.0..9.0).contains(&t) {
                     p += 0.03 * (2.0 * std::f64::consts::PI * 8.0 * t).sin();
@@ -85,7 +106,7 @@ const HELD_CM: [f64; 4] = [8.3, 7.975, 7.65, 7.325];
 /// and 10 (test), imported through a mapping into `dir/records`: the
 /// records' directory and import's stdout and stderr.
 fn imported(dir: &Path) -> (std::path::PathBuf, bool, String, String) {
-    imported_with(dir, Sensor { lag_s: None })
+    imported_with(dir, AT_ONCE)
 }
 
 /// [`imported`] with the pressure read by `sensor`.
@@ -348,7 +369,13 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
 #[cfg_attr(debug_assertions, ignore)]
 fn a_sensor_ahead_of_the_muscle_is_diagnosed_as_a_pressure_lag() {
     let dir = tempfile::tempdir().unwrap();
-    let (out, ok, stdout, stderr) = imported_with(dir.path(), Sensor { lag_s: Some(0.05) });
+    let (out, ok, stdout, stderr) = imported_with(
+        dir.path(),
+        Sensor {
+            lag_s: Some(0.05),
+            ..AT_ONCE
+        },
+    );
     assert!(ok, "{stdout}{stderr}");
     let diag = dir.path().join("diagnose");
     let (ok, stdout, stderr) = pam_lab(&[
@@ -388,6 +415,95 @@ fn a_sensor_ahead_of_the_muscle_is_diagnosed_as_a_pressure_lag() {
     let blob = std::fs::read(diag.join("model.blob")).unwrap();
     let (_, effects) = pam_core::blob::decode_model(&blob).unwrap();
     assert!(effects.pressure_lag.is_some());
+}
+
+/// A force that answers the sensor's pressure 12 ms later, on four
+/// cycles a file (the Festo records' force follows their pressure by
+/// 10–16 ms, on fills of about a second; on the one slow cycle of the
+/// other tests a 12 ms delay moves the pressure by 1–5 kPa against the
+/// braid friction's ±20 kPa loop): diagnose estimates the delay from the
+/// data, names `pressure_delay` after the static shape, writes fit's
+/// static model refitted on the retimed training part with it (blob
+/// version 5), and that model predicts the other test's pressure better
+/// than the static reference surface, which has no delay; without the
+/// delay, the same muscle gets none. Fails on a diagnosis without the
+/// delay candidate (no `pressure_delay`). Release only, as above.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn a_force_answering_the_pressure_late_is_diagnosed_as_a_pressure_delay() {
+    let diagnosed = |delay_s: Option<f64>| {
+        let dir = tempfile::tempdir().unwrap();
+        let (out, ok, stdout, stderr) = imported_with(
+            dir.path(),
+            Sensor {
+                delay_s,
+                cycles: 4.0,
+                ..AT_ONCE
+            },
+        );
+        assert!(ok, "{stdout}{stderr}");
+        let diag = dir.path().join("diagnose");
+        let (ok, stdout, stderr) = pam_lab(&[
+            "diagnose",
+            out.join("train.csv").to_str().unwrap(),
+            "--validate",
+            out.join("test.csv").to_str().unwrap(),
+            "--no-plot",
+            "-o",
+            diag.to_str().unwrap(),
+        ]);
+        assert!(ok, "{stdout}{stderr}");
+        eprintln!("{stdout}{stderr}");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).unwrap())
+                .unwrap();
+        let blob = std::fs::read(diag.join("model.blob")).unwrap();
+        (report, blob)
+    };
+    let added = |report: &serde_json::Value| -> Vec<String> {
+        report["effects_added"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap().to_string())
+            .collect()
+    };
+    // The same muscle and protocol without a delay: none is named (its
+    // braid friction's loop is not taken for one; read against a static
+    // surface without the branch's surface, or with the branches of the
+    // pressure as measured instead of as moved, it was: 18 ms, named).
+    // By a small margin: the estimate reads 3.6 ms, and that delay's
+    // candidate cuts 19.9 % of the held-out error but 14.8 % in its regime,
+    // under the 15 % rule.
+    let (report, _) = diagnosed(None);
+    assert!(
+        !added(&report).iter().any(|e| e == "pressure_delay"),
+        "{:?}",
+        added(&report)
+    );
+    let (report, blob) = diagnosed(Some(0.012));
+    let names = added(&report);
+    assert_eq!(
+        names.first().map(String::as_str),
+        Some("constraint_shape"),
+        "{names:?}"
+    );
+    assert!(names.iter().any(|e| e == "pressure_delay"), "{names:?}");
+    let d = report["effects"]["pressure_delay"]["delay_s"]
+        .as_f64()
+        .unwrap();
+    // Within two samples (1.8 ms each) of the truth: the estimate read
+    // 12.6 ms, and the one of it and its neighbours a sample either side
+    // whose static model fits its training part best is written (14.4 ms).
+    assert!((d - 0.012).abs() <= 0.0037, "{d}");
+    let v = &report["validation"];
+    let model = v["model"]["pressure_rms_mpa"].as_f64().unwrap();
+    let reference = v["reference_rms_mpa"].as_f64().unwrap();
+    eprintln!("validation pressure RMS: diagnosed {model:.4}, reference {reference:.4} MPa");
+    assert!(model < reference, "{model} vs {reference}");
+    assert_eq!(u16::from_le_bytes([blob[4], blob[5]]), 5);
+    let (_, effects) = pam_core::blob::decode_model(&blob).unwrap();
+    assert!(effects.pressure_delay.is_some());
 }
 
 #[test]

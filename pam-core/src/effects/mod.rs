@@ -9,6 +9,7 @@
 //! | [`Creep`] | slow first-order relaxation after pressure steps | `gain`, `time_constant_s` |
 //! | [`LoadDependentWidth`] | ellipse height linear in load | `scale_at_min_load`, `scale_per_step` |
 //! | [`PressureLag`] | the muscle's pressure a first-order lag of the measured one | `time_constant_s` |
+//! | [`PressureDelay`] | the muscle's pressure the measured one a fixed time earlier (applied by a record's driver: see its module) | `delay_s` |
 //! | [`ConstraintShape`] | a static curve outside the cubic family: a monotone correction along each load's stroke, both branches alike, and its ends moved with load | `bulge`, `tilt` (and per load step), `root_shift`, `end_shift` (and per load step, per squared load step) |
 //!
 //! All are `no_std`, allocation-free, and panic-free per sample; the memory
@@ -40,6 +41,7 @@ pub mod creep;
 pub mod first_order;
 pub mod memory;
 pub mod offset;
+pub mod pressure_delay;
 pub mod pressure_lag;
 pub mod rate;
 pub mod shape;
@@ -51,6 +53,7 @@ pub use memory::{NonLocalMemory, Reversal, ReversalStack};
 pub use offset::{
     branch_contraction, branch_contraction_near, MAX_OFFSET_SCALE, SCALED_INVERSE_STEPS,
 };
+pub use pressure_delay::PressureDelay;
 pub use pressure_lag::{PressureLag, PressureLagState};
 pub use rate::{RateDependence, RateState};
 pub use shape::{ConstraintShape, ShapeInverse, StrokeTable};
@@ -84,6 +87,13 @@ pub struct Effects {
         serde(default, skip_serializing_if = "Option::is_none")
     )]
     pub pressure_lag: Option<PressureLag>,
+    /// The muscle's pressure the measured one a fixed time earlier (absent
+    /// from the model files written before it: off).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub pressure_delay: Option<PressureDelay>,
 }
 
 impl Effects {
@@ -95,6 +105,7 @@ impl Effects {
         width: None,
         shape: None,
         pressure_lag: None,
+        pressure_delay: None,
     };
 
     /// Validate every effect that is on.
@@ -116,6 +127,9 @@ impl Effects {
         }
         if let Some(l) = &self.pressure_lag {
             l.validate()?;
+        }
+        if let Some(d) = &self.pressure_delay {
+            d.validate()?;
         }
         Ok(())
     }

@@ -2,9 +2,11 @@
 //! simulator, the one record simulator) and its errors against the
 //! measurement ([`errors`]: per load and branch, noise floor, correlation);
 //! [`families`]: a record on the accuracy × instructions plane, fit's model
-//! beside the Preisach model.
+//! beside the Preisach model; [`retime`]: a record's pressure moved in time
+//! against its other channels (a pressure delay).
 
 pub mod crossing;
 pub mod errors;
 pub mod families;
+pub mod retime;
 pub mod simulate;

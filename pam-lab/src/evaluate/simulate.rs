@@ -123,7 +123,9 @@ fn start(
 /// `each` gets the sample's index, the simulator after the step and the
 /// predicted contraction. Time runs from the record's first sample: the
 /// effects' filters integrate time steps in `f32`, which stays exact on a
-/// record whose clock starts late. `false` when the effects do not
+/// record whose clock starts late. With a pressure delay the simulator is
+/// driven by the pressure measured that long before each sample
+/// ([`super::retime::delayed_pressures`]). `false` when the effects do not
 /// validate (nothing is simulated).
 pub fn run_record(
     coeffs: &Coeffs,
@@ -137,9 +139,13 @@ pub fn run_record(
     let Some(mut sim) = start(coeffs, effects, config, samples, tables) else {
         return false;
     };
+    let delayed = effects
+        .pressure_delay
+        .map(|d| super::retime::delayed_pressures(samples, f64::from(d.delay_s)));
     let t0 = samples.first().map_or(0.0, |s| s.t_s);
     for (i, s) in samples.iter().enumerate() {
-        let (t, p, l) = ((s.t_s - t0) as f32, s.pressure_mpa as f32, s.load_n as f32);
+        let p = delayed.as_ref().map_or(s.pressure_mpa, |d| d[i]);
+        let (t, p, l) = ((s.t_s - t0) as f32, p as f32, s.load_n as f32);
         let x = match branches.and_then(|b| b.get(i)) {
             Some(&b) => sim.step_on_branch(t, p, l, b),
             None => sim.step(t, p, l),
@@ -178,6 +184,10 @@ pub fn run_record(
 /// leaked the measurement into the prediction: on Festo 40 cm, test 10,
 /// it read 0.76× the reference surface; from the model's own pressures the
 /// lag cuts 5.7 % of the held-out error there.)
+///
+/// With a pressure delay the measured pressure predicted at a sample is
+/// the one predicted without it `delay_s` later ([`super::retime::shifted`]):
+/// the muscle answers then.
 pub fn pressure_to_reach(
     coeffs: &Coeffs,
     effects: &Effects,
@@ -188,6 +198,25 @@ pub fn pressure_to_reach(
     pressure_limit_mpa: f32,
 ) -> Vec<f64> {
     let mut out = vec![f64::NAN; samples.len()];
+    if let Some(delay) = effects.pressure_delay {
+        if delay.validate().is_err() {
+            return out;
+        }
+        let muscle = Effects {
+            pressure_delay: None,
+            ..*effects
+        };
+        let at_once = pressure_to_reach(
+            coeffs,
+            &muscle,
+            config,
+            samples,
+            branches,
+            tables,
+            pressure_limit_mpa,
+        );
+        return super::retime::shifted(samples, &at_once, f64::from(delay.delay_s));
+    }
     if let Some(lag) = effects.pressure_lag {
         if lag.validate().is_err() {
             return out;
@@ -298,6 +327,7 @@ pub fn simulate(
     // its shape: without it the Festo 10 cm model's pressure error here
     // read 38 kPa where fit measures 13).
     let mut statics = ModelCache::new(coeffs, effects.shape.as_ref());
+    let delay_s = effects.pressure_delay.map(|d| f64::from(d.delay_s));
     run_record(
         coeffs,
         effects,
@@ -321,6 +351,17 @@ pub fn simulate(
             });
         },
     );
+    // With a pressure delay the measured pressure the static model predicts
+    // at a sample is the muscle's that much later.
+    if let Some(d) = delay_s {
+        let muscle: Vec<f64> = out.iter().map(|s| s.predicted_pressure_mpa).collect();
+        for (s, p) in out
+            .iter_mut()
+            .zip(super::retime::shifted(samples, &muscle, d))
+        {
+            s.predicted_pressure_mpa = p;
+        }
+    }
     out
 }
 

@@ -283,10 +283,16 @@ pub fn rust_source_with_effects(params: &Params, effects: &Effects, origin: &str
             f(l.time_constant_s)
         )
     }));
+    let pressure_delay = opt(effects.pressure_delay.map(|d| {
+        format!(
+            "pam_core::effects::PressureDelay {{\n        delay_s: {},\n    }}",
+            f(d.delay_s)
+        )
+    }));
     src.push_str(&format!(
         "\n/// The effects of the model beyond the paper's, identified with it.\n\
          pub const EFFECTS: pam_core::Effects = pam_core::Effects {{\n    \
-         memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n    shape: {shape},\n    pressure_lag: {pressure_lag},\n}};\n"
+         memory: {memory},\n    rate: {rate},\n    creep: {creep},\n    width: {width},\n    shape: {shape},\n    pressure_lag: {pressure_lag},\n    pressure_delay: {pressure_delay},\n}};\n"
     ));
     src
 }

@@ -135,6 +135,66 @@ impl ReferenceSurface {
         Some(surface)
     }
 
+    /// The training RMS pressure error, MPa, of the surface fitted with a
+    /// second surface beside it that changes sign with the branch
+    /// (`branch[i]`: +1 filling, −1 venting; degree 2 in load): the best
+    /// smooth static curve with a hysteresis that does not depend on the
+    /// rate. `None` with fewer samples than twice its coefficients.
+    pub fn training_rms_with_branch_mpa(
+        samples: &[Sample],
+        branch: &[f64],
+        include: impl Fn(usize) -> bool,
+    ) -> Option<f64> {
+        const NB: usize = 3;
+        let m = NX * NL + NX * NB;
+        let used: Vec<usize> = (0..samples.len().min(branch.len()))
+            .filter(|&i| include(i))
+            .collect();
+        if used.len() < 2 * m {
+            return None;
+        }
+        let range = |f: fn(&Sample) -> f64| {
+            used.iter()
+                .map(|&i| f(&samples[i]))
+                .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)))
+        };
+        let (xr, lr) = (range(|s| s.contraction), range(|s| s.load_n));
+        let row_of = |i: usize, out: &mut Vec<f64>| {
+            let s = &samples[i];
+            let mut r = [0.0; NX * NL];
+            row(xr, lr, s.contraction, s.load_n, &mut r);
+            out.clear();
+            out.extend_from_slice(&r);
+            for i_x in 0..NX {
+                for j in 0..NB {
+                    out.push(branch[i] * r[i_x * NL + j]);
+                }
+            }
+        };
+        let mut ata = DMatrix::<f64>::zeros(m, m);
+        let mut atb = DVector::<f64>::zeros(m);
+        let mut r = Vec::with_capacity(m);
+        for &i in &used {
+            row_of(i, &mut r);
+            for j in 0..m {
+                atb[j] += r[j] * samples[i].pressure_mpa;
+                for k in 0..m {
+                    ata[(j, k)] += r[j] * r[k];
+                }
+            }
+        }
+        let svd = ata.svd(true, true);
+        let tol = svd.singular_values.max() * 1e-12;
+        let c = svd.solve(&atb, tol).ok()?;
+        let mut sq = 0.0;
+        for &i in &used {
+            row_of(i, &mut r);
+            let p: f64 = r.iter().zip(c.iter()).map(|(a, b)| a * b).sum();
+            sq += (p - samples[i].pressure_mpa).powi(2);
+        }
+        Some((sq / used.len() as f64).sqrt())
+    }
+
     /// RMS pressure error (surface − measured) on the samples `include`
     /// selects, and their number; `None` when it selects none.
     pub fn rms_mpa(

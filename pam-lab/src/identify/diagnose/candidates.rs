@@ -6,13 +6,14 @@ use pam_core::effects::memory::MIN_MERGE_SPAN;
 use pam_core::effects::rate::{MAX_RATE_MPA_PER_S, RATE_EXPONENT_RANGE};
 use pam_core::effects::shape::MAX_SHAPE_SLOPE;
 use pam_core::effects::{
-    ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureLag, RateDependence,
+    ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureDelay, PressureLag,
+    RateDependence,
 };
 use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
 
 use super::config::DiagnoseConfig;
-use super::evaluate::{ModelErrors, Setup};
+use super::evaluate::{ModelErrors, Setup, Variant};
 use super::refit::refit_base;
 
 /// A candidate effect.
@@ -31,17 +32,20 @@ pub enum EffectKind {
     ConstraintShape,
     /// The muscle's pressure lagging the measured one ([`PressureLag`]).
     PressureLag,
+    /// The muscle answering the measured pressure later ([`PressureDelay`]).
+    PressureDelay,
 }
 
 impl EffectKind {
     /// Every candidate, in the order they are tried.
-    pub const ALL: [EffectKind; 6] = [
+    pub const ALL: [EffectKind; 7] = [
         EffectKind::NonLocalMemory,
         EffectKind::RateDependence,
         EffectKind::Creep,
         EffectKind::LoadDependentWidth,
         EffectKind::ConstraintShape,
         EffectKind::PressureLag,
+        EffectKind::PressureDelay,
     ];
 
     /// Whether the diagnosis offers it on a record: the pressure lag on an
@@ -49,9 +53,16 @@ impl EffectKind {
     /// force is measured, so a lag of the pressure alone is told apart
     /// from everything the load does; on an isotonic record it would
     /// compete with the rate law's loop widening with the pressure's rate,
-    /// which no record here separates from it yet).
-    pub fn offered(self, isometric: bool) -> bool {
-        self != EffectKind::PressureLag || isometric
+    /// which no record here separates from it yet); the pressure delay
+    /// likewise, and only once the static shape is in (its candidate is
+    /// fit's static model refitted on the retimed record: offered before
+    /// the shape, it would carry the shape's cut as its own).
+    pub fn offered(self, isometric: bool, shape_on: bool) -> bool {
+        match self {
+            EffectKind::PressureLag => isometric,
+            EffectKind::PressureDelay => isometric && shape_on,
+            _ => true,
+        }
     }
 
     /// The name used in reports.
@@ -63,6 +74,7 @@ impl EffectKind {
             EffectKind::LoadDependentWidth => "load_dependent_width",
             EffectKind::ConstraintShape => "constraint_shape",
             EffectKind::PressureLag => "pressure_lag",
+            EffectKind::PressureDelay => "pressure_delay",
         }
     }
 
@@ -73,7 +85,7 @@ impl EffectKind {
         match self {
             EffectKind::RateDependence => 5,
             EffectKind::ConstraintShape => 8,
-            EffectKind::PressureLag => 1,
+            EffectKind::PressureLag | EffectKind::PressureDelay => 1,
             _ => 2,
         }
     }
@@ -85,7 +97,7 @@ impl EffectKind {
         match self {
             EffectKind::RateDependence => 4,
             EffectKind::ConstraintShape => 8,
-            EffectKind::PressureLag => 1,
+            EffectKind::PressureLag | EffectKind::PressureDelay => 1,
             _ => 2,
         }
     }
@@ -100,6 +112,9 @@ impl EffectKind {
             EffectKind::ConstraintShape => "static_shape",
             // Where the pressure moves fast, the lag's error is largest.
             EffectKind::PressureLag => "fast_ramp",
+            // Wherever the pressure moves, steps included: a delay's error
+            // is the pressure's rate times the delay.
+            EffectKind::PressureDelay => "pressure_moving",
         }
     }
 
@@ -147,6 +162,8 @@ impl EffectKind {
                 vec![PRESSURE_LAG_TIME.theta(0.01)],
                 vec![PRESSURE_LAG_TIME.theta(0.05)],
             ],
+            // Estimated from the data, not searched (`delay.rs`).
+            EffectKind::PressureDelay => vec![vec![PRESSURE_DELAY_TIME.theta(0.005)]],
         }
     }
 
@@ -225,6 +242,11 @@ impl EffectKind {
                     time_constant_s: PRESSURE_LAG_TIME.value(t(0)) as f32,
                 })
             }
+            EffectKind::PressureDelay => {
+                e.pressure_delay = Some(PressureDelay {
+                    delay_s: PRESSURE_DELAY_TIME.value(t(0)) as f32,
+                })
+            }
         }
         e
     }
@@ -238,6 +260,7 @@ impl EffectKind {
             EffectKind::LoadDependentWidth => e.width.is_some(),
             EffectKind::ConstraintShape => e.shape.is_some(),
             EffectKind::PressureLag => e.pressure_lag.is_some(),
+            EffectKind::PressureDelay => e.pressure_delay.is_some(),
         }
     }
 }
@@ -310,6 +333,14 @@ const PRESSURE_LAG_TIME: LogRange = LogRange {
     lo: PressureLag::MIN_TIME_CONSTANT_S as f64,
     ratio: (PressureLag::MAX_TIME_CONSTANT_S / PressureLag::MIN_TIME_CONSTANT_S) as f64,
     hi: PressureLag::MAX_TIME_CONSTANT_S as f64,
+};
+
+/// The pressure delay, s: logarithmic over pam-core's range,
+/// `[0.0005, 0.1]`.
+const PRESSURE_DELAY_TIME: LogRange = LogRange {
+    lo: PressureDelay::MIN_DELAY_S as f64,
+    ratio: (PressureDelay::MAX_DELAY_S / PressureDelay::MIN_DELAY_S) as f64,
+    hi: PressureDelay::MAX_DELAY_S as f64,
 };
 
 /// The memory's merge span: logarithmic over `[MIN_MERGE_SPAN, 1]`.
@@ -521,6 +552,11 @@ pub(super) fn evaluate_candidate(
     current_params: usize,
     cfg: &DiagnoseConfig,
 ) -> CandidateResult {
+    if kind == EffectKind::PressureDelay {
+        if let Some(v) = super::delay::variant(setup, current, current_params) {
+            return judge(setup, kind, v, current_errors, current_params, cfg, false);
+        }
+    }
     // The effect's parameters on the current base, then the base refitted
     // with the effect on (an effect the base fit could not see biases it:
     // creep lags every ramp the static curve was fitted to), then the
@@ -682,11 +718,6 @@ pub(super) fn regime_rms(kind: EffectKind, errors: &ModelErrors) -> f64 {
             .map_or(f64::NAN, |r| r.rms),
     }
 }
-
-/// One fitted variant of a candidate: base parameters, their
-/// coefficients, the effects, their errors and residual, and the
-/// parameters it adds.
-type Variant = (Params, Coeffs, Effects, ModelErrors, Vec<f64>, usize);
 
 fn describe(c: &CandidateResult) -> String {
     format!(

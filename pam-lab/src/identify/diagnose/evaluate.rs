@@ -137,6 +137,23 @@ pub(super) struct Setup<'a> {
     /// parameters fitted under it: the start of the `constraint_shape`
     /// candidate's second variant.
     pub(super) stroke_table: Option<(pam_core::Params, pam_core::effects::ConstraintShape)>,
+    /// fit's static model (the paper's parameters and the static shape)
+    /// on the training part with each pressure taken the record's delay
+    /// earlier, and that delay (`delay.rs`): the `pressure_delay`
+    /// candidate, on an isometric record where fit keeps a static shape
+    /// and the record shows a delay.
+    pub(super) delayed_static: Option<DelayedStatic>,
+}
+
+/// The `pressure_delay` candidate's static model ([`Setup::delayed_static`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct DelayedStatic {
+    /// The paper's parameters fitted under the shape.
+    pub(super) params: pam_core::Params,
+    /// fit's static shape on the retimed training part.
+    pub(super) shape: pam_core::effects::ConstraintShape,
+    /// The delay estimated.
+    pub(super) delay: pam_core::effects::PressureDelay,
 }
 
 /// Bins along the stroke of [`stroke_bins`].
@@ -359,3 +376,15 @@ impl Setup<'_> {
         )
     }
 }
+
+/// One fitted variant of a candidate: base parameters, their
+/// coefficients, the effects, their errors and residual, and the
+/// parameters it adds.
+pub(super) type Variant = (
+    pam_core::Params,
+    Coeffs,
+    Effects,
+    ModelErrors,
+    Vec<f64>,
+    usize,
+);

@@ -167,7 +167,12 @@ fn remaining(setup: &Setup<'_>, path: &Path) -> Vec<EffectKind> {
     let isometric = setup.pressure_curves.is_some();
     EffectKind::ALL
         .into_iter()
-        .filter(|k| k.offered(isometric) && !k.is_on(&path.effects))
+        .filter(|k| {
+            k.offered(
+                isometric,
+                path.effects.shape.is_some() && setup.delayed_static.is_some(),
+            ) && !k.is_on(&path.effects)
+        })
         .collect()
 }
 
@@ -276,7 +281,14 @@ pub(super) fn search(
                     (y_alone, x_kind),
                     (Some(yc), Some(xk)) if earns_together(xk, &path.errors, &yc.errors, cfg)
                 );
+                // The pressure delay is offered only on the static shape
+                // (its candidate is the static model refitted on the
+                // retimed record): there is no delay alone to weigh the
+                // shape against.
+                let y_needs_x = y == EffectKind::PressureDelay.name()
+                    && x_kind == Some(EffectKind::ConstraintShape);
                 let earns = together
+                    || y_needs_x
                     || on_y.unwrap_or_else(|| match (y_alone, x_kind) {
                         // The second effect did not earn its place alone:
                         // fit the first on top of it here.

@@ -242,6 +242,7 @@ mod tests {
             excluded: vec![false; n],
             load_group_n: 1.0,
             stroke_table: None,
+            delayed_static: None,
             tables: crate::evaluate::simulate::InverseTables::AtEachSwitch,
         }
     }

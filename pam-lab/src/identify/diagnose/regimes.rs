@@ -168,6 +168,10 @@ pub struct Regimes {
     pub after_inner_reversal: Vec<bool>,
     /// Pressure rate above 0.1 MPa/s (not at a step).
     pub fast_ramp: Vec<bool>,
+    /// Pressure rate above 0.1 MPa/s, steps included: where a delay of
+    /// the muscle behind its pressure shows (its error is the rate times
+    /// the delay, largest at a step).
+    pub pressure_moving: Vec<bool>,
     /// Pressure rate between 0.005 and 0.035 MPa/s.
     pub slow_ramp: Vec<bool>,
     /// Within 10 s after a pressure step while the pressure holds.
@@ -181,10 +185,11 @@ pub struct Regimes {
 
 impl Regimes {
     /// Names and masks, for reports.
-    pub fn named(&self) -> [(&'static str, &Vec<bool>); 4] {
+    pub fn named(&self) -> [(&'static str, &Vec<bool>); 5] {
         [
             ("after_inner_reversal", &self.after_inner_reversal),
             ("fast_ramp", &self.fast_ramp),
+            ("pressure_moving", &self.pressure_moving),
             ("slow_ramp", &self.slow_ramp),
             ("hold_after_step", &self.hold_after_step),
         ]
@@ -278,6 +283,7 @@ fn pressure_regimes_of(samples: &[Sample], m: &PressureMotion) -> Regimes {
     let mut r = Regimes {
         after_inner_reversal: vec![false; n],
         fast_ramp: vec![false; n],
+        pressure_moving: vec![false; n],
         slow_ramp: vec![false; n],
         hold_after_step: vec![false; n],
         max_ramp_rate_mpa_per_s: max_ramp_rate(
@@ -300,6 +306,7 @@ fn pressure_regimes_of(samples: &[Sample], m: &PressureMotion) -> Regimes {
         }
         let a = m.rate_mpa_per_s[i].abs();
         r.fast_ramp[i] = a > 0.1 && since_step_any > near_step;
+        r.pressure_moving[i] = a > 0.1 || m.step[i];
         r.slow_ramp[i] = a > 0.005 && a < 0.035 && since_step_any > near_step;
         if a > 0.01 && since_step > near_step {
             since_step = usize::MAX;

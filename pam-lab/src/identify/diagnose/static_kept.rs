@@ -55,7 +55,12 @@ pub(super) fn on_fits_static_model(
     cfg: &DiagnoseConfig,
     progress: &(dyn Fn(&str) + Sync),
 ) -> Option<Kept> {
-    let (params, shape) = setup.stroke_table?;
+    // With the path's pressure delay, fit's static model on the retimed
+    // training part (the delay's candidate).
+    let (params, shape) = match (path.effects.pressure_delay, &setup.delayed_static) {
+        (Some(_), Some(d)) => (d.params, d.shape),
+        _ => setup.stroke_table?,
+    };
     path.effects.shape?;
     let kinds: Vec<EffectKind> = path
         .added
@@ -77,6 +82,7 @@ pub(super) fn on_fits_static_model(
     let mut effects = Effects {
         shape: Some(shape),
         pressure_lag: path.effects.pressure_lag,
+        pressure_delay: path.effects.pressure_delay,
         ..Effects::NONE
     };
     let passes = if kinds.len() > 1 { 2 } else { 1 };

@@ -77,7 +77,16 @@ pub fn validate(
     let own_test = detect_test(own);
     let own_slack = slack_mask(own, own_test);
     let own_split = split_branches(own, &cfg.fit.split);
-    let reference = ReferenceSurface::fit(own, |i| own_split.branch[i].is_some() && !own_slack[i]);
+    let own_include = |i: usize| own_split.branch[i].is_some() && !own_slack[i];
+    let reference = ReferenceSurface::fit(own, own_include);
+    let reference_delayed_rms_mpa = report.effects.pressure_delay.and_then(|d| {
+        let delayed = |s: &[crate::record::Sample]| {
+            crate::evaluate::retime::with_delayed_pressure(s, f64::from(d.delay_s))
+        };
+        ReferenceSurface::fit(&delayed(own), own_include)?
+            .rms_mpa(&delayed(raw), include)
+            .map(|(rms, _)| rms)
+    });
     DiagnoseValidation {
         source: validation.source.clone(),
         samples: (0..raw.len()).filter(|&i| include(i)).count(),
@@ -86,5 +95,6 @@ pub fn validate(
         reference_rms_mpa: reference
             .and_then(|r| r.rms_mpa(raw, include))
             .map(|(rms, _)| rms),
+        reference_delayed_rms_mpa,
     }
 }

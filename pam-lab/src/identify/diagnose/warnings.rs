@@ -57,6 +57,7 @@ mod tests {
         Regimes {
             after_inner_reversal: vec![false; holds.len()],
             fast_ramp: vec![false; holds.len()],
+            pressure_moving: vec![false; holds.len()],
             slow_ramp: vec![false; holds.len()],
             hold_after_step: holds.to_vec(),
             max_ramp_rate_mpa_per_s: 0.2,
