@@ -736,6 +736,21 @@ mod tests {
         assert_eq!(framed_len(&b), Some(BLOB_V3_LEN));
     }
 
+    /// `encode_model` writes `len` bytes for `p` with `e`, they decode to
+    /// the same model, and flipping any seventh bit is refused.
+    fn round_trips_and_refuses_every_flip(p: &Params, e: &Effects, len: usize) {
+        let (b, n) = encode_model(p, e);
+        assert_eq!(n, len);
+        assert_eq!(framed_len(&b), Some(len));
+        let (c, back) = decode_model(&b[..n]).unwrap();
+        assert_eq!((c.params(), &back), (p, e));
+        for i in (0..len * 8).step_by(7) {
+            let mut x = b;
+            x[i / 8] ^= 1 << (i % 8);
+            assert!(decode_model(&x[..n]).is_err(), "bit {i}");
+        }
+    }
+
     #[test]
     fn a_model_with_a_pressure_lag_is_version_4_with_or_without_a_table() {
         let p = Params::DEFAULT;
@@ -756,16 +771,7 @@ mod tests {
                 ..with_every_effect()
             },
         ] {
-            let (b, n) = encode_model(&p, &e);
-            assert_eq!(n, BLOB_V4_LEN);
-            assert_eq!(framed_len(&b), Some(BLOB_V4_LEN));
-            let (c, back) = decode_model(&b[..n]).unwrap();
-            assert_eq!((c.params(), back), (&p, e));
-            for i in (0..BLOB_V4_LEN * 8).step_by(7) {
-                let mut x = b;
-                x[i / 8] ^= 1 << (i % 8);
-                assert!(decode_model(&x[..n]).is_err(), "bit {i}");
-            }
+            round_trips_and_refuses_every_flip(&p, &e, BLOB_V4_LEN);
         }
         // Without the lag version 4 is refused (one encoding per model), and
         // so is a time constant out of range.
@@ -801,16 +807,7 @@ mod tests {
                 ..with_every_effect()
             },
         ] {
-            let (b, n) = encode_model(&p, &e);
-            assert_eq!(n, BLOB_V5_LEN);
-            assert_eq!(framed_len(&b), Some(BLOB_V5_LEN));
-            let (c, back) = decode_model(&b[..n]).unwrap();
-            assert_eq!((c.params(), back), (&p, e));
-            for i in (0..BLOB_V5_LEN * 8).step_by(7) {
-                let mut x = b;
-                x[i / 8] ^= 1 << (i % 8);
-                assert!(decode_model(&x[..n]).is_err(), "bit {i}");
-            }
+            round_trips_and_refuses_every_flip(&p, &e, BLOB_V5_LEN);
         }
         // Without the delay version 5 is refused (one encoding per model);
         // so are the delay's flag in version 4, a delay out of range, and a

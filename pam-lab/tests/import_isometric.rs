@@ -368,36 +368,12 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn a_sensor_ahead_of_the_muscle_is_diagnosed_as_a_pressure_lag() {
-    let dir = tempfile::tempdir().unwrap();
-    let (out, ok, stdout, stderr) = imported_with(
-        dir.path(),
-        Sensor {
-            lag_s: Some(0.05),
-            ..AT_ONCE
-        },
-    );
-    assert!(ok, "{stdout}{stderr}");
-    let diag = dir.path().join("diagnose");
-    let (ok, stdout, stderr) = pam_lab(&[
-        "diagnose",
-        out.join("train.csv").to_str().unwrap(),
-        "--validate",
-        out.join("test.csv").to_str().unwrap(),
-        "--no-plot",
-        "-o",
-        diag.to_str().unwrap(),
-    ]);
-    assert!(ok, "{stdout}{stderr}");
-    eprintln!("{stdout}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).unwrap()).unwrap();
-    let added: Vec<&str> = report["effects_added"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_str().unwrap())
-        .collect();
-    assert!(added.contains(&"pressure_lag"), "{added:?}");
+    let (report, blob) = diagnosed_with(Sensor {
+        lag_s: Some(0.05),
+        ..AT_ONCE
+    });
+    let added = effects_added(&report);
+    assert!(added.iter().any(|e| e == "pressure_lag"), "{added:?}");
     let tau = report["effects"]["pressure_lag"]["time_constant_s"]
         .as_f64()
         .unwrap();
@@ -412,7 +388,6 @@ fn a_sensor_ahead_of_the_muscle_is_diagnosed_as_a_pressure_lag() {
     let model = v["model"]["pressure_rms_mpa"].as_f64().unwrap();
     let reference = v["reference_rms_mpa"].as_f64().unwrap();
     assert!(model < reference, "{model} vs {reference}");
-    let blob = std::fs::read(diag.join("model.blob")).unwrap();
     let (_, effects) = pam_core::blob::decode_model(&blob).unwrap();
     assert!(effects.pressure_lag.is_some());
 }
@@ -431,43 +406,14 @@ fn a_sensor_ahead_of_the_muscle_is_diagnosed_as_a_pressure_lag() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn a_force_answering_the_pressure_late_is_diagnosed_as_a_pressure_delay() {
-    let diagnosed = |delay_s: Option<f64>| {
-        let dir = tempfile::tempdir().unwrap();
-        let (out, ok, stdout, stderr) = imported_with(
-            dir.path(),
-            Sensor {
-                delay_s,
-                cycles: 4.0,
-                ..AT_ONCE
-            },
-        );
-        assert!(ok, "{stdout}{stderr}");
-        let diag = dir.path().join("diagnose");
-        let (ok, stdout, stderr) = pam_lab(&[
-            "diagnose",
-            out.join("train.csv").to_str().unwrap(),
-            "--validate",
-            out.join("test.csv").to_str().unwrap(),
-            "--no-plot",
-            "-o",
-            diag.to_str().unwrap(),
-        ]);
-        assert!(ok, "{stdout}{stderr}");
-        eprintln!("{stdout}{stderr}");
-        let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).unwrap())
-                .unwrap();
-        let blob = std::fs::read(diag.join("model.blob")).unwrap();
-        (report, blob)
+    let diagnosed = |delay_s| {
+        diagnosed_with(Sensor {
+            delay_s,
+            cycles: 4.0,
+            ..AT_ONCE
+        })
     };
-    let added = |report: &serde_json::Value| -> Vec<String> {
-        report["effects_added"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_str().unwrap().to_string())
-            .collect()
-    };
+    let added = effects_added;
     // The same muscle and protocol without a delay: none is named (its
     // braid friction's loop is not taken for one; read against a static
     // surface without the branch's surface, or with the branches of the
@@ -504,6 +450,39 @@ fn a_force_answering_the_pressure_late_is_diagnosed_as_a_pressure_delay() {
     assert_eq!(u16::from_le_bytes([blob[4], blob[5]]), 5);
     let (_, effects) = pam_core::blob::decode_model(&blob).unwrap();
     assert!(effects.pressure_delay.is_some());
+}
+
+/// The generated records read by `sensor`, imported, and diagnosed with
+/// test 10 validating: the report and the blob written.
+fn diagnosed_with(sensor: Sensor) -> (serde_json::Value, Vec<u8>) {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, ok, stdout, stderr) = imported_with(dir.path(), sensor);
+    assert!(ok, "{stdout}{stderr}");
+    let diag = dir.path().join("diagnose");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "diagnose",
+        out.join("train.csv").to_str().unwrap(),
+        "--validate",
+        out.join("test.csv").to_str().unwrap(),
+        "--no-plot",
+        "-o",
+        diag.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}{stderr}");
+    eprintln!("{stdout}{stderr}");
+    let report =
+        serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).unwrap()).unwrap();
+    (report, std::fs::read(diag.join("model.blob")).unwrap())
+}
+
+/// The effects a diagnosis added, in order.
+fn effects_added(report: &serde_json::Value) -> Vec<String> {
+    report["effects_added"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect()
 }
 
 #[test]
