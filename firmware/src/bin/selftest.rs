@@ -275,7 +275,7 @@ fn main() -> ! {
     } else {
         log!(
             info,
-            "boot: coefficient blob accepted ({} bytes, version {}{}{}{}{}{}{})",
+            "boot: coefficient blob accepted ({} bytes, version {}{}{}{}{}{}{}{})",
             blob.len(),
             blob.get(4).copied().unwrap_or(0),
             named(effects.memory.is_some(), ", non-local memory"),
@@ -283,7 +283,8 @@ fn main() -> ! {
             named(effects.creep.is_some(), ", creep"),
             named(effects.width.is_some(), ", load-dependent width"),
             named(effects.shape.is_some(), ", constraint shape"),
-            named(effects.pressure_lag.is_some(), ", pressure lag")
+            named(effects.pressure_lag.is_some(), ", pressure lag"),
+            named(effects.pressure_delay.is_some(), ", pressure delay")
         );
     }
     #[cfg(feature = "qemu")]
