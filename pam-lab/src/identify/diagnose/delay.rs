@@ -17,9 +17,10 @@
 //! `pressure_delay` candidate is then fit's static model refitted on the
 //! record so retimed, with that delay.
 //!
-//! On the public Festo 10 mm records (tests 8 and 9) the surface's training
-//! RMS falls from 10.7 to 8.9 kPa at 6 ms (10 cm) and from 9.1 to 5.6 kPa
-//! at 8–9 ms (40 cm), one clear minimum each.
+//! On the public Festo 10 mm records (tests 8 and 9, diagnose's training
+//! part) the surfaces' training RMS falls from 12.2 to 9.0 kPa at 12 ms
+//! (10 cm) and from 9.5 to 5.7 kPa at 18 ms (40 cm), one clear minimum
+//! each.
 
 use crate::evaluate::errors::median_step_s;
 use crate::evaluate::retime::with_delayed_pressure;
