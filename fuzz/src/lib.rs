@@ -144,7 +144,7 @@ impl<'a> Floats<'a> {
     /// `Effects::validate` must refuse them).
     pub fn effects(&mut self) -> pam_core::Effects {
         use pam_core::effects::{
-            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureLag,
+            ConstraintShape, Creep, LoadDependentWidth, NonLocalMemory, PressureDelay, PressureLag,
             RateDependence,
         };
         let on = self.byte();
@@ -183,6 +183,9 @@ impl<'a> Floats<'a> {
             }),
             pressure_lag: (on & 32 != 0).then(|| PressureLag {
                 time_constant_s: self.near(0.02, 2.0),
+            }),
+            pressure_delay: (on & 64 != 0).then(|| PressureDelay {
+                delay_s: self.near(0.01, 2.0),
             }),
         }
     }

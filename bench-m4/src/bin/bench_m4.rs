@@ -798,6 +798,9 @@ fn main() -> ! {
         pressure_lag: Some(PressureLag {
             time_constant_s: 0.02,
         }),
+        // A pressure delay adds no work a period: its lead joins the lag's
+        // time constant when the inverse is made.
+        pressure_delay: None,
     };
     // The online adaptation with the paper's model, updating on every
     // period it may (no settling time, no transient freeze): its slowest
