@@ -271,18 +271,7 @@ pub fn lag_lead(tau_s: f64, samples: &[Sample], muscle_mpa: &[f64]) -> Vec<f64> 
     let n = samples.len().min(muscle_mpa.len());
     let half = 2.0 * tau_s;
     let mut out = vec![0.0; n];
-    let max_step = f64::from(pam_core::effects::MAX_STEP_S);
-    // Runs of rising time.
-    let mut start = 0;
-    while start < n {
-        let mut end = start + 1;
-        while end < n {
-            let dt = samples[end].t_s - samples[end - 1].t_s;
-            if !(dt > 0.0 && dt <= max_step) {
-                break;
-            }
-            end += 1;
-        }
+    for (start, end) in super::retime::runs(&samples[..n]) {
         let (mut lo, mut hi) = (start, start);
         for i in start..end {
             let t = samples[i].t_s;
@@ -307,7 +296,6 @@ pub fn lag_lead(tau_s: f64, samples: &[Sample], muscle_mpa: &[f64]) -> Vec<f64> 
                 }
             };
         }
-        start = end;
     }
     out
 }
