@@ -358,8 +358,16 @@ pub struct NoiseFloor {
 /// the turns of smooth cycles), whatever the protocol. There the muscle's
 /// own motion adds almost nothing to a second difference, so
 /// `var(x[i+1] − 2x[i] + x[i−1]) = 6σ²`; the median absolute value makes it
-/// robust to the few steps and spikes left (`σ ≈ 1.4826·MAD`). Falls back to
-/// the whole record when fewer than 30 such triples exist.
+/// robust to the few steps and spikes left (`σ ≈ 1.4826·MAD`). A channel
+/// a logger quantises (the Festo records' pressure, in steps of 0.77 kPa)
+/// holds one value over a still stretch: its second differences there are
+/// exactly zero in a share no continuous noise gives, and their median is
+/// 0 or one quantisation step depending on whether that share is just over
+/// or under a half (Festo 15 cm: 0; 20 cm: 0.46 kPa). Where at least
+/// [`QUANTISED_SHARE`] are exactly zero the mean absolute value is taken
+/// instead (`E|d| = √(2/π)·√6·σ`: 0.23–0.29 kPa on the six Festo lengths,
+/// about the step's rounding, `0.77/√12` = 0.22 kPa). Falls back to the
+/// whole record when fewer than 30 such triples exist.
 pub fn noise_floor(samples: &[Sample]) -> NoiseFloor {
     let n = samples.len();
     let whole = || NoiseFloor {
@@ -397,16 +405,34 @@ pub fn noise_floor(samples: &[Sample]) -> NoiseFloor {
     if dx.len() < 30 {
         return whole();
     }
-    let sigma = |mut d: Vec<f64>| {
-        let mid = d.len() / 2;
-        let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
-        1.4826 * *m / 6f64.sqrt()
-    };
     NoiseFloor {
         samples: dx.len(),
-        contraction: sigma(dx),
-        pressure_mpa: sigma(dp),
+        contraction: second_difference_sigma(dx),
+        pressure_mpa: second_difference_sigma(dp),
     }
+}
+
+/// The share of exactly zero second differences at and above which
+/// [`noise_floor`] reads a channel as quantised: continuous noise gives
+/// none, a quantised channel that holds still about half (0.46–0.59 on the
+/// Festo records' pressure).
+const QUANTISED_SHARE: f64 = 0.25;
+
+/// White noise's σ from the absolute second differences `d` of a channel
+/// (each `√6·σ` in RMS): the median's, or for a quantised channel
+/// ([`QUANTISED_SHARE`]) the mean's. 0 without differences.
+fn second_difference_sigma(mut d: Vec<f64>) -> f64 {
+    if d.is_empty() {
+        return 0.0;
+    }
+    let zeros = d.iter().filter(|v| **v == 0.0).count();
+    if zeros as f64 >= QUANTISED_SHARE * d.len() as f64 {
+        let mean = d.iter().sum::<f64>() / d.len() as f64;
+        return mean / (6.0 * 2.0 / std::f64::consts::PI).sqrt();
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *m / 6f64.sqrt()
 }
 
 /// Median sample interval of a record, s (0.02 if it has under 2 samples
@@ -468,6 +494,37 @@ mod noise_tests {
             let len = correlation_length(&r, noise, short);
             assert!((150.0..=350.0).contains(&len), "{noise} {short}: {len}");
         }
+    }
+
+    #[test]
+    fn a_quantised_channel_has_the_noise_of_its_rounding() {
+        // Pressure ramps and holds with 0.0002 MPa of noise, rounded to
+        // steps of 0.00077 MPa as the Festo logger's (over half of the slow
+        // second differences exactly zero): the floor is the rounded
+        // signal's noise, about the step's `q/√12` with the noise beside
+        // it, not the median's 0 (or one step, 0.00047, where the share of
+        // zeros is just under a half).
+        let q = 0.00077;
+        let s: Vec<Sample> = (0..20_000)
+            .map(|i| {
+                let t = i as f64 * 0.01;
+                let phase = (t / 10.0).fract();
+                let p = 0.3 * (4.0 * phase).min(1.0) * (4.0 - 4.0 * phase).min(1.0);
+                Sample {
+                    t_s: t,
+                    load_n: 200.0,
+                    pressure_mpa: ((p + 0.0002 * gauss(2 * i)) / q).round() * q,
+                    contraction: 0.3 * p + 0.0008 * gauss(2 * i + 1),
+                }
+            })
+            .collect();
+        let f = noise_floor(&s);
+        let rounded = (q * q / 12.0 + 0.0002f64.powi(2)).sqrt();
+        assert!(
+            f.pressure_mpa > 0.5 * rounded && f.pressure_mpa < 1.5 * rounded,
+            "{f:?} against {rounded}"
+        );
+        assert!((f.contraction - 0.0008).abs() < 0.1 * 0.0008, "{f:?}");
     }
 
     #[test]
