@@ -364,7 +364,7 @@ pub struct NoiseFloor {
 /// exactly zero in a share no continuous noise gives, and their median is
 /// 0 or one quantisation step depending on whether that share is just over
 /// or under a half (Festo 15 cm: 0; 20 cm: 0.46 kPa). Where at least
-/// [`QUANTISED_SHARE`] are exactly zero the mean absolute value is taken
+/// `QUANTISED_SHARE` (a quarter) are exactly zero the mean absolute value is taken
 /// instead (`E|d| = √(2/π)·√6·σ`: 0.23–0.29 kPa on the six Festo lengths,
 /// about the step's rounding, `0.77/√12` = 0.22 kPa). Falls back to the
 /// whole record when fewer than 30 such triples exist.
