@@ -804,6 +804,22 @@ mod tests {
         }
     }
 
+    /// The turns of the new-loop tests on `branch` of a model whose loop
+    /// closes at `pmax`: the turning pressure (on the other branch), with
+    /// and without a point below on this one (further along `branch`).
+    fn turns(pmax: f32, branch: Branch) -> impl Iterator<Item = (f32, Option<f32>)> {
+        [(2, 5), (3, 7), (5, 8), (1, 4)]
+            .into_iter()
+            .flat_map(move |(i, j)| {
+                let (a, b) = (pmax * i as f32 / 10.0, pmax * j as f32 / 10.0);
+                let (p_r, p_t) = match branch {
+                    Branch::Contraction => (a, b),
+                    Branch::Expansion => (b, a),
+                };
+                [(p_r, Some(p_t)), (p_r, None)]
+            })
+    }
+
     /// A reversal's loop as the feedforward makes it: the point below (a
     /// turning point on `branch`, or none) and the turn on the other branch
     /// pushed at `scale`, the set-point a period back from the turn.
@@ -861,65 +877,52 @@ mod tests {
             let pmax = m.max_pressure_mpa();
             for scale in [0.0f32, 0.4, 0.8, 1.2, 1.6, 2.5] {
                 for branch in [Branch::Contraction, Branch::Expansion] {
-                    for (i, j) in [(2, 5), (3, 7), (5, 8), (1, 4)] {
-                        // The turn on the other branch, the point below on
-                        // this one (further along `branch` than the turn).
-                        let (a, b) = (pmax * i as f32 / 10.0, pmax * j as f32 / 10.0);
-                        let (p_r, p_t) = match branch {
-                            Branch::Contraction => (a, b),
-                            Branch::Expansion => (b, a),
+                    for (p_r, below) in turns(pmax, branch) {
+                        let (mut s, mut moved, x) = reversal_loop(&m, below, p_r, branch, scale);
+                        let (origin, target) = s.top2();
+                        let origin = origin.unwrap();
+                        let starts = new_loop_starts(&m, origin, target, branch, scale);
+                        let p_end = end_pressure(&m, target, branch);
+                        s.feedforward_pressure_mpa_moved(&mut moved, &MEM, &m, x, branch, scale);
+                        // (No loop where the set-point is already past
+                        // the point below: the loop closes at once.)
+                        let Some(seg) = s.segment else {
+                            continue;
                         };
-                        for below in [Some(p_t), None] {
-                            let (mut s, mut moved, x) =
-                                reversal_loop(&m, below, p_r, branch, scale);
-                            let (origin, target) = s.top2();
-                            let origin = origin.unwrap();
-                            let starts = new_loop_starts(&m, origin, target, branch, scale);
-                            let p_end = end_pressure(&m, target, branch);
+                        let first = (
+                            search_step(&m, origin.pressure_mpa, branch, scale, starts.0).0,
+                            search_step(&m, p_end, branch, scale, starts.1).0,
+                        );
+                        assert_eq!(
+                            (seg.b_r.to_bits(), seg.b_t.to_bits()),
+                            (first.0.to_bits(), first.1.to_bits()),
+                            "{load} N, {scale}, {branch:?}, {p_r} MPa, {below:?}"
+                        );
+                        let exact = (
+                            branch_contraction(&m, origin.pressure_mpa, branch, scale),
+                            branch_contraction(&m, p_end, branch, scale),
+                        );
+                        if seg.b_r == exact.0 && seg.b_t == exact.1 {
+                            // (An end at `Pmax`, or both fell back.)
+                            continue;
+                        }
+                        assert!(!s.has_cached_loop(), "{load} N, {scale}, {branch:?}");
+                        loops += 1;
+                        let mut periods = 1;
+                        while !s.has_cached_loop() && periods < 10 {
                             s.feedforward_pressure_mpa_moved(
                                 &mut moved, &MEM, &m, x, branch, scale,
                             );
-                            // (No loop where the set-point is already past
-                            // the point below: the loop closes at once.)
-                            let Some(seg) = s.segment else {
-                                continue;
-                            };
-                            let first = (
-                                search_step(&m, origin.pressure_mpa, branch, scale, starts.0).0,
-                                search_step(&m, p_end, branch, scale, starts.1).0,
-                            );
-                            assert_eq!(
-                                (seg.b_r.to_bits(), seg.b_t.to_bits()),
-                                (first.0.to_bits(), first.1.to_bits()),
-                                "{load} N, {scale}, {branch:?}, {p_r} MPa, {below:?}"
-                            );
-                            let exact = (
-                                branch_contraction(&m, origin.pressure_mpa, branch, scale),
-                                branch_contraction(&m, p_end, branch, scale),
-                            );
-                            if seg.b_r == exact.0 && seg.b_t == exact.1 {
-                                // (An end at `Pmax`, or both fell back.)
-                                continue;
-                            }
-                            assert!(!s.has_cached_loop(), "{load} N, {scale}, {branch:?}");
-                            loops += 1;
-                            let mut periods = 1;
-                            while !s.has_cached_loop() && periods < 10 {
-                                s.feedforward_pressure_mpa_moved(
-                                    &mut moved, &MEM, &m, x, branch, scale,
-                                );
-                                periods += 1;
-                            }
-                            periods_worst = periods_worst.max(periods);
-                            let seg = s.segment.unwrap();
-                            assert!(
-                                (seg.b_r - exact.0).abs() <= 2e-6
-                                    && (seg.b_t - exact.1).abs() <= 2e-6,
-                                "{load} N, {scale}, {branch:?}, {p_r} MPa, {below:?}: \
-                                 {periods} periods, {:?} vs {exact:?}",
-                                (seg.b_r, seg.b_t)
-                            );
+                            periods += 1;
                         }
+                        periods_worst = periods_worst.max(periods);
+                        let seg = s.segment.unwrap();
+                        assert!(
+                            (seg.b_r - exact.0).abs() <= 2e-6 && (seg.b_t - exact.1).abs() <= 2e-6,
+                            "{load} N, {scale}, {branch:?}, {p_r} MPa, {below:?}: \
+                                 {periods} periods, {:?} vs {exact:?}",
+                            (seg.b_r, seg.b_t)
+                        );
                     }
                 }
             }
@@ -947,53 +950,46 @@ mod tests {
             assert!(!m.inverse_ready());
             let pmax = m.max_pressure_mpa();
             for branch in [Branch::Contraction, Branch::Expansion] {
-                for (i, j) in [(2, 5), (3, 7), (5, 8), (1, 4)] {
-                    let (a, b) = (pmax * i as f32 / 10.0, pmax * j as f32 / 10.0);
-                    let (p_r, p_t) = match branch {
-                        Branch::Contraction => (a, b),
-                        Branch::Expansion => (b, a),
+                for (p_r, below) in turns(pmax, branch) {
+                    let (mut s, mut moved, x) = reversal_loop(&m, below, p_r, branch, 1.0);
+                    let (origin, target) = s.top2();
+                    let origin = origin.unwrap();
+                    let starts = new_loop_starts(&m, origin, target, branch, 1.0);
+                    let p_end = end_pressure(&m, target, branch);
+                    s.feedforward_pressure_mpa_moved(&mut moved, &MEM, &m, x, branch, 1.0);
+                    let Some(seg) = s.segment else {
+                        continue;
                     };
-                    for below in [Some(p_t), None] {
-                        let (mut s, mut moved, x) = reversal_loop(&m, below, p_r, branch, 1.0);
-                        let (origin, target) = s.top2();
-                        let origin = origin.unwrap();
-                        let starts = new_loop_starts(&m, origin, target, branch, 1.0);
-                        let p_end = end_pressure(&m, target, branch);
+                    let first = (
+                        search_step(&m, origin.pressure_mpa, branch, 1.0, starts.0).0,
+                        search_step(&m, p_end, branch, 1.0, starts.1).0,
+                    );
+                    assert_eq!(
+                        (seg.b_r.to_bits(), seg.b_t.to_bits()),
+                        (first.0.to_bits(), first.1.to_bits()),
+                        "{load} N, {branch:?}, {p_r} MPa, {below:?}"
+                    );
+                    loops += 1;
+                    let mut periods = 1;
+                    while !s.has_cached_loop() && periods < 10 {
                         s.feedforward_pressure_mpa_moved(&mut moved, &MEM, &m, x, branch, 1.0);
-                        let Some(seg) = s.segment else {
+                        periods += 1;
+                    }
+                    periods_worst = periods_worst.max(periods);
+                    assert!(s.has_cached_loop(), "{load} N, {branch:?}, {p_r} MPa");
+                    let seg = s.segment.unwrap();
+                    for (b, p) in [(seg.b_r, origin.pressure_mpa), (seg.b_t, p_end)] {
+                        if p >= pmax {
+                            assert_eq!(b, m.max_contraction());
                             continue;
-                        };
-                        let first = (
-                            search_step(&m, origin.pressure_mpa, branch, 1.0, starts.0).0,
-                            search_step(&m, p_end, branch, 1.0, starts.1).0,
-                        );
-                        assert_eq!(
-                            (seg.b_r.to_bits(), seg.b_t.to_bits()),
-                            (first.0.to_bits(), first.1.to_bits()),
-                            "{load} N, {branch:?}, {p_r} MPa, {below:?}"
-                        );
-                        loops += 1;
-                        let mut periods = 1;
-                        while !s.has_cached_loop() && periods < 10 {
-                            s.feedforward_pressure_mpa_moved(&mut moved, &MEM, &m, x, branch, 1.0);
-                            periods += 1;
                         }
-                        periods_worst = periods_worst.max(periods);
-                        assert!(s.has_cached_loop(), "{load} N, {branch:?}, {p_r} MPa");
-                        let seg = s.segment.unwrap();
-                        for (b, p) in [(seg.b_r, origin.pressure_mpa), (seg.b_t, p_end)] {
-                            if p >= pmax {
-                                assert_eq!(b, m.max_contraction());
-                                continue;
-                            }
-                            let miss = (m.pressure_mpa(b, branch) - p).abs();
-                            worst_miss = worst_miss.max(miss);
-                            assert!(
-                                miss <= 1e-6,
-                                "{load} N, {branch:?}, {p_r} MPa, {below:?}: {periods} periods, \
+                        let miss = (m.pressure_mpa(b, branch) - p).abs();
+                        worst_miss = worst_miss.max(miss);
+                        assert!(
+                            miss <= 1e-6,
+                            "{load} N, {branch:?}, {p_r} MPa, {below:?}: {periods} periods, \
                                  end {b} misses {p} MPa by {miss}"
-                            );
-                        }
+                        );
                     }
                 }
             }
