@@ -21,6 +21,18 @@ pub const DEGREE_CONTRACTION: usize = 4;
 /// Polynomial degree in load.
 pub const DEGREE_LOAD: usize = 5;
 
+/// One training point of a surface: a sample's contraction, load and
+/// pressure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Point {
+    /// Contraction.
+    pub contraction: f64,
+    /// Load, N.
+    pub load_n: f64,
+    /// Pressure, MPa.
+    pub pressure_mpa: f64,
+}
+
 /// A fitted reference surface.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceSurface {
@@ -83,18 +95,27 @@ impl ReferenceSurface {
     /// Fit to the samples `include` selects; `None` with fewer samples than
     /// coefficients.
     pub fn fit(samples: &[Sample], include: impl Fn(usize) -> bool) -> Option<ReferenceSurface> {
-        let used: Vec<&Sample> = samples
+        let used: Vec<Point> = samples
             .iter()
             .enumerate()
             .filter(|(i, _)| include(*i))
-            .map(|(_, s)| s)
+            .map(|(_, s)| Point {
+                contraction: s.contraction,
+                load_n: s.load_n,
+                pressure_mpa: s.pressure_mpa,
+            })
             .collect();
+        Self::fit_points(&used)
+    }
+
+    /// [`Self::fit`] to `points`.
+    pub fn fit_points(used: &[Point]) -> Option<ReferenceSurface> {
         if used.len() < 2 * NX * NL {
             return None;
         }
-        let range = |f: fn(&Sample) -> f64| {
+        let range = |f: fn(&Point) -> f64| {
             used.iter()
-                .map(|s| f(s))
+                .map(f)
                 .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)))
         };
         let xr = range(|s| s.contraction);
@@ -108,7 +129,7 @@ impl ReferenceSurface {
         let mut ata = DMatrix::<f64>::zeros(m, m);
         let mut atb = DVector::<f64>::zeros(m);
         let mut r = [0.0; NX * NL];
-        for s in &used {
+        for s in used {
             row(xr, lr, s.contraction, s.load_n, &mut r);
             for j in 0..m {
                 atb[j] += r[j] * s.pressure_mpa;

@@ -19,6 +19,21 @@ pub(super) struct TrainSet {
     pub(super) sigma_x: f64,
 }
 
+#[cfg(test)]
+impl TrainSet {
+    /// A training set without samples, the noise of a typical record.
+    pub(super) fn empty() -> TrainSet {
+        TrainSet {
+            x: Vec::new(),
+            p: Vec::new(),
+            branch: Vec::new(),
+            runs: Vec::new(),
+            sigma_p: 1e-3,
+            sigma_x: 1e-4,
+        }
+    }
+}
+
 impl TrainSet {
     pub(super) fn len(&self) -> usize {
         self.x.len()

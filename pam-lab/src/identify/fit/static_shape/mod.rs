@@ -32,16 +32,32 @@
 //! the optimiser visits is a shape pam-core accepts: no constraint to
 //! hold, no projection, and the identity at the start.
 //!
+//! The search starts at the identity. Where its table follows the
+//! training samples worse than the reference surface does (RMS pressure
+//! error over [`BEHIND_REFERENCE`] times the surface's: a smooth surface
+//! without hysteresis does better, so the search stopped in a poor
+//! minimum), it runs again from the table that makes the paper model
+//! follow the surface ([`reference_start`]), and the lower training cost
+//! is kept. On the Festo records with every fourth training cycle held
+//! out this took 40 cm's test 10 from 1.45× to 1.14× the reference
+//! surface; it ran on 6 of the 18 fits of six lengths and three holdouts
+//! and changed no other (`pam-lab/README.md`, "How firm these ratios
+//! are").
+//!
 //! The stage's model is kept only when it earns its parameters: Bayesian
 //! information criterion on the training residuals
 //! (`n·ln(SSE₂/SSE₁) + k·ln n < 0`, `k` = the table's variables).
 
-use pam_core::effects::shape::table::{blend_f64, TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS};
+use pam_core::effects::shape::table::{
+    at_fraction_f64, blend_f64, TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS,
+};
 use pam_core::effects::{ConstraintShape, StrokeTable};
 
 use super::*;
 
+mod reference_start;
 pub(super) mod variables;
+use reference_start::{reference_start, training_surface};
 use variables::{StaticShape, NT, NV};
 
 /// The share of an even split of the training samples' weight over the
@@ -254,22 +270,53 @@ fn refit_paper(
     ))
 }
 
-/// The stage on the first stage's paper model `theta`: the table, the
-/// paper's model refitted under it, the table again. `None` when the table
-/// does not earn its parameters or pam-core refuses its export.
-pub(super) fn fit_static_shape(
+/// How far above the reference surface's training RMS pressure error the
+/// table's may be before the search runs from the surface's table too
+/// ([`reference_start`]): a model with a stroke table that follows its
+/// training samples worse than a smooth surface without hysteresis has
+/// stopped in a poor minimum.
+const BEHIND_REFERENCE: f64 = 1.05;
+
+/// The RMS pressure error, MPa, of the paper model `fam` with `shape` on
+/// the training samples (unweighted, as the reference surface's).
+fn pressure_rms(train: &TrainSet, fam: &LoadFamily, shape: &StaticShape) -> f64 {
+    let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
+    let mut sq = 0.0;
+    for &(load, start, end) in &train.runs {
+        let m = fam.at_load(load);
+        let k = at_fraction_f64(&shape.nodes, (load - fam.min_load_n) / span);
+        let steps = (load.clamp(fam.min_load_n, fam.max_load_n) - fam.min_load_n) / fam.load_step_n;
+        let at = ConstraintShape::at_steps_f64(shape.coefficients, steps).0;
+        for i in start..end {
+            let (p, _) = ConstraintShape::pressure_and_slope_f64(
+                at,
+                Some(&k),
+                &m,
+                train.x[i],
+                train.branch[i],
+            );
+            sq += (p - train.p[i]).powi(2);
+        }
+    }
+    (sq / train.len().max(1) as f64).sqrt()
+}
+
+/// The table from the variables `w0` on the paper model `theta`, the
+/// paper's model refitted under it (kept where that lowers the training
+/// cost), and the table again on it; with the residual evaluations spent.
+#[allow(clippy::too_many_arguments)]
+fn search_from(
     train: &TrainSet,
     fixed: &Fixed,
     theta: &[f64],
     anchor: &[f64; NP],
+    w0: &[f64],
     patience: usize,
     progress: &(dyn Fn(Progress) + Sync),
-) -> Option<ShapeStage> {
-    let n = train.len();
+) -> Option<(lsq::Minimum, Option<Refit>, usize)> {
     let fam = family(theta, fixed);
-    let mut minimum = fit_table(train, &fam, &[0.0; NV], patience, progress)?;
+    let mut minimum = fit_table(train, &fam, w0, patience, progress)?;
     let mut evaluations = minimum.evaluations;
-    let before = cost(train, &fam, None);
     let mut refit = None;
     if let Some((r, c)) = refit_paper(
         train,
@@ -289,6 +336,46 @@ pub(super) fn fit_static_shape(
             }
         }
     }
+    Some((minimum, refit, evaluations))
+}
+
+/// The stage on the first stage's paper model `theta`: the table, the
+/// paper's model refitted under it, the table again. `None` when the table
+/// does not earn its parameters or pam-core refuses its export.
+pub(super) fn fit_static_shape(
+    train: &TrainSet,
+    fixed: &Fixed,
+    theta: &[f64],
+    anchor: &[f64; NP],
+    patience: usize,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Option<ShapeStage> {
+    let n = train.len();
+    let fam = family(theta, fixed);
+    let search = |w0: &[f64]| search_from(train, fixed, theta, anchor, w0, patience, progress);
+    let mut found = search(&[0.0; NV]);
+    // Behind the reference surface on the training samples: the search
+    // from the surface's table too, the lower training cost kept.
+    if let Some(surface) = training_surface(train) {
+        let behind = found.as_ref().is_none_or(|(m, refit, _)| {
+            let fam = refit.as_ref().map_or(fam, |r| family(&r.theta, fixed));
+            let rms = pressure_rms(train, &fam, &StaticShape::of(&m.theta));
+            rms > BEHIND_REFERENCE * surface.training_rms_mpa
+        });
+        if behind {
+            let second = reference_start(&surface, &fam).and_then(|w0| search(&w0));
+            if let Some((m, refit, e)) = second {
+                let evaluations = e + found.as_ref().map_or(0, |f| f.2);
+                if found.as_ref().is_none_or(|f| m.cost < f.0.cost) {
+                    found = Some((m, refit, evaluations));
+                } else if let Some(f) = found.as_mut() {
+                    f.2 = evaluations;
+                }
+            }
+        }
+    }
+    let (minimum, refit, evaluations) = found?;
+    let before = cost(train, &fam, None);
     let after = minimum.cost;
     let nf = n as f64;
     let earns =
@@ -318,18 +405,6 @@ mod tests {
     use super::variables::knots;
     use super::*;
     use pam_core::effects::shape::MAX_SHAPE_SLOPE;
-
-    /// A training set without samples, the noise of a typical record.
-    fn empty_train_set() -> TrainSet {
-        TrainSet {
-            x: Vec::new(),
-            p: Vec::new(),
-            branch: Vec::new(),
-            runs: Vec::new(),
-            sigma_p: 1e-3,
-            sigma_x: 1e-4,
-        }
-    }
 
     #[test]
     fn every_point_the_search_visits_is_a_shape_pam_core_accepts() {
@@ -408,6 +483,35 @@ mod tests {
     }
 
     #[test]
+    fn the_tables_pressure_rms_is_its_residuals_in_pressure() {
+        // With unit pressure noise and no contraction noise the training
+        // residuals are the pressure errors: their RMS is `pressure_rms`.
+        let fam = LoadFamily::from_params(&Params::DEFAULT).unwrap();
+        let mut train = TrainSet::empty();
+        (train.sigma_p, train.sigma_x) = (1.0, 0.0);
+        for (r, load) in [120.0, 333.0, 590.0].into_iter().enumerate() {
+            let start = train.len();
+            for k in 0..20 {
+                train.x.push(0.01 + 0.01 * k as f64);
+                train.p.push(0.02 * k as f64 + 0.01 * r as f64);
+                train.branch.push(if k % 2 == 0 {
+                    Branch::Contraction
+                } else {
+                    Branch::Expansion
+                });
+            }
+            train.runs.push((load, start, train.len()));
+        }
+        let w: Vec<f64> = (0..NV).map(|j| 0.2 * (j as f64).cos()).collect();
+        let shape = StaticShape::of(&w);
+        let mut r = vec![0.0; train.len()];
+        train.table_residuals(&fam, Some(&shape), &mut r);
+        let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt();
+        assert!(rms > 0.0);
+        assert!((pressure_rms(&train, &fam, &shape) - rms).abs() < 1e-12 * rms);
+    }
+
+    #[test]
     fn a_table_load_moves_only_its_block() {
         // Runs at loads across and beyond the calibrated range, the table
         // loads themselves among them: moving one table load's variables
@@ -421,7 +525,7 @@ mod tests {
             (0..TABLE_LOADS).map(|i| fam.min_load_n + span * i as f64 / (TABLE_LOADS - 1) as f64),
         );
         loads.sort_by(f64::total_cmp);
-        let mut train = empty_train_set();
+        let mut train = TrainSet::empty();
         for &load in &loads {
             let start = train.len();
             for k in 0..5 {
@@ -471,7 +575,7 @@ mod tests {
         // halfway between their neighbours', the last reached one is kept.
         let fam = LoadFamily::from_params(&Params::DEFAULT).unwrap();
         let span = fam.max_load_n - fam.min_load_n;
-        let mut train = empty_train_set();
+        let mut train = TrainSet::empty();
         let at = |i: usize| fam.min_load_n + span * i as f64 / (TABLE_LOADS - 1) as f64;
         for (load, n) in [
             (at(0), 500),

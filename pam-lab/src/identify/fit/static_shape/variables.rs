@@ -52,7 +52,7 @@ impl StaticShape {
 
 /// Each segment's least length in the fitted tables, a fraction of the
 /// stroke: pam-core's least slope with a margin for the `f32` rounding.
-const MIN_SEGMENT: f64 = 1.5 * MIN_TABLE_SLOPE as f64 / TABLE_SEGMENTS as f64;
+pub(crate) const MIN_SEGMENT: f64 = 1.5 * MIN_TABLE_SLOPE as f64 / TABLE_SEGMENTS as f64;
 
 /// The knots per load of the variables `w`: segment lengths
 /// `MIN_SEGMENT + (1 − K·MIN_SEGMENT)·eʷ/Σeʷ` (the first segment's `w` is
