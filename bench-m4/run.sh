@@ -8,7 +8,10 @@
 # 3. print the instruction table, the per-model summary (cost, code and RAM
 #    bytes, held-out accuracy) and the accuracy table.
 # With --check, fails when a count regresses by more than 10 % against
-# bench-m4/baseline.tsv; with --update, rewrites that file.
+# bench-m4/baseline.tsv; with --update, rewrites that file. With
+# --profile GROUP (e.g. ctl_run_effects), runs the image again and prints
+# where GROUP's three slowest calls spend their instructions, by function
+# (bench-m4/profile.py), instead of the tables.
 #
 # Needs: rustup target thumbv7em-none-eabihf and llvm-tools (rust-toolchain.toml),
 # gcc, qemu-system-arm (apt-get install -y qemu-system-arm), python3.
@@ -38,6 +41,16 @@ timeout 300 qemu-system-arm -machine netduinoplus2 -nographic -monitor none -ser
 "$nm" --print-size --size-sort --radix=d "$elf" >"$work/symbols.txt"
 objdump=$(ls "$(rustc --print sysroot)"/lib/rustlib/*/bin/llvm-objdump | head -n1)
 "$objdump" -d --no-show-raw-insn "$elf" >"$work/disasm.txt"
+if [ "$mode" = "--profile" ]; then
+  group=${2:?"--profile needs a group, e.g. ctl_run_effects"}
+  threshold=$(python3 "$here/profile.py" threshold "$work/out.txt" "$work/regions.txt" "$group")
+  timeout 300 qemu-system-arm -machine netduinoplus2 -nographic -monitor none -serial none \
+    -semihosting-config enable=on,target=native -kernel "$elf" \
+    -plugin "$work/libinsn_count.so,start=$start,end=$end,profile=$threshold" >/dev/null 2>"$work/profile.txt"
+  "$nm" --print-size --radix=d --demangle "$elf" >"$work/functions.txt"
+  python3 "$here/profile.py" show "$work/out.txt" "$work/profile.txt" "$work/functions.txt" "$group"
+  exit 0
+fi
 python3 "$here/report.py" "$work/out.txt" "$work/regions.txt" "$work/symbols.txt" "$here/baseline.tsv" "$mode" \
   "$work/disasm.txt" "$here/accuracy.tsv"
 echo

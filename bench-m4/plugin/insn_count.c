@@ -12,6 +12,11 @@
  *     region <n> insns <count> vdiv <count> vsqrt <count>
  * counting the instructions executed in between (call overhead included; the
  * bench subtracts an empty region measured the same way).
+ *
+ * With profile=N also: after the line of a region of at least N instructions,
+ * one line per instruction address executed in it,
+ *     pc <hex address> <times>
+ * and a line "end profile" (bench-m4/profile.py names the functions).
  */
 #include <stdbool.h>
 #include <stdint.h>
@@ -44,13 +49,42 @@ static uint64_t start_addr, end_addr;
 static bool counting;
 static uint64_t n_insns, n_vdiv, n_vsqrt, n_region;
 
+/* The profile (profile=N): per-address counts of the current region, the
+ * addresses in the order first executed (to print and clear only those). */
+#define PROFILE_SLOTS (1u << 20) /* halfword slots: 2 MiB of flash from 0x08000000 */
+static const uint64_t profile_base = 0x08000000;
+static uint64_t profile_threshold;
+static uint32_t *profile_counts, *profile_touched;
+static uint32_t n_touched;
+
+static void profile_count(uint64_t pc) {
+    uint64_t slot = (pc - profile_base) / 2;
+    if (pc < profile_base || slot >= PROFILE_SLOTS) return;
+    if (profile_counts[slot]++ == 0) profile_touched[n_touched++] = (uint32_t)slot;
+}
+
+static void profile_flush(bool print) {
+    for (uint32_t i = 0; i < n_touched; i++) {
+        uint32_t slot = profile_touched[i];
+        if (print)
+            fprintf(stderr, "pc %llx %u\n", (unsigned long long)(profile_base + 2ull * slot), profile_counts[slot]);
+        profile_counts[slot] = 0;
+    }
+    if (print) fprintf(stderr, "end profile\n");
+    n_touched = 0;
+}
+
+/* udata: the instruction's KIND_* bits, its address above them. */
+#define KIND_BITS 4
+
 static void on_insn(unsigned int vcpu, void *udata) {
     (void)vcpu;
-    uintptr_t kind = (uintptr_t)udata;
+    uintptr_t kind = (uintptr_t)udata & ((1u << KIND_BITS) - 1);
     if (kind & KIND_END) {
         if (counting) {
             fprintf(stderr, "region %llu insns %llu vdiv %llu vsqrt %llu\n", (unsigned long long)n_region,
                     (unsigned long long)n_insns, (unsigned long long)n_vdiv, (unsigned long long)n_vsqrt);
+            if (profile_counts) profile_flush(n_insns >= profile_threshold);
             n_region++;
         }
         counting = false;
@@ -65,6 +99,7 @@ static void on_insn(unsigned int vcpu, void *udata) {
         n_insns++;
         if (kind & KIND_VDIV) n_vdiv++;
         if (kind & KIND_VSQRT) n_vsqrt++;
+        if (profile_counts) profile_count((uint64_t)((uintptr_t)udata >> KIND_BITS));
     }
 }
 
@@ -83,7 +118,8 @@ static void on_tb(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
             if (strstr(dis, "vsqrt")) kind |= KIND_VSQRT;
             free(dis);
         }
-        qemu_plugin_register_vcpu_insn_exec_cb(insn, on_insn, QEMU_PLUGIN_CB_NO_REGS, (void *)kind);
+        uintptr_t data = kind | ((uintptr_t)pc << KIND_BITS);
+        qemu_plugin_register_vcpu_insn_exec_cb(insn, on_insn, QEMU_PLUGIN_CB_NO_REGS, (void *)data);
     }
 }
 
@@ -92,6 +128,15 @@ QEMU_PLUGIN_EXPORT int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_
     for (int i = 0; i < argc; i++) {
         if (strncmp(argv[i], "start=", 6) == 0) start_addr = strtoull(argv[i] + 6, NULL, 0);
         if (strncmp(argv[i], "end=", 4) == 0) end_addr = strtoull(argv[i] + 4, NULL, 0);
+        if (strncmp(argv[i], "profile=", 8) == 0) {
+            profile_threshold = strtoull(argv[i] + 8, NULL, 0);
+            profile_counts = calloc(PROFILE_SLOTS, sizeof *profile_counts);
+            profile_touched = calloc(PROFILE_SLOTS, sizeof *profile_touched);
+            if (!profile_counts || !profile_touched) {
+                fprintf(stderr, "insn_count: no memory for the profile\n");
+                return -1;
+            }
+        }
     }
     if (start_addr == 0 || end_addr == 0 || start_addr == end_addr) {
         fprintf(stderr, "insn_count: need distinct start=0x.. and end=0x.. marker addresses\n");
