@@ -122,6 +122,33 @@ impl TrainSet {
         out: &mut [f64],
     ) {
         let (vp, vx) = (self.sigma_p * self.sigma_p, self.sigma_x * self.sigma_x);
+        self.table_misses_of(fam, shape, rows, out, |miss, slope| {
+            miss / (vp + slope * slope * vx).sqrt()
+        });
+    }
+
+    /// The pressure the model of `fam` with `shape` needs at each training
+    /// sample minus the measured one, MPa, unweighted, into `out[..len]`.
+    pub(super) fn table_pressure_misses(
+        &self,
+        fam: &LoadFamily,
+        shape: Option<&StaticShape>,
+        out: &mut [f64],
+    ) {
+        self.table_misses_of(fam, shape, 0..self.len(), out, |miss, _| miss);
+    }
+
+    /// Each sample's pressure miss and the model pressure's slope in
+    /// contraction, for the runs within `rows`, made into `out` by `each`.
+    #[inline(always)]
+    fn table_misses_of(
+        &self,
+        fam: &LoadFamily,
+        shape: Option<&StaticShape>,
+        rows: std::ops::Range<usize>,
+        out: &mut [f64],
+        each: impl Fn(f64, f64) -> f64,
+    ) {
         let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
         let runs = self
             .runs
@@ -142,7 +169,7 @@ impl TrainSet {
             let slots = &mut out[start - rows.start..end - rows.start];
             for (o, ((&x, &br), &pm)) in slots.iter_mut().zip(samples) {
                 let (p, slope) = ConstraintShape::pressure_and_slope_f64(at, k.as_ref(), &m, x, br);
-                *o = (p - pm) / (vp + slope * slope * vx).sqrt();
+                *o = each(p - pm, slope);
             }
         }
     }

@@ -48,9 +48,7 @@
 //! information criterion on the training residuals
 //! (`n·ln(SSE₂/SSE₁) + k·ln n < 0`, `k` = the table's variables).
 
-use pam_core::effects::shape::table::{
-    at_fraction_f64, blend_f64, TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS,
-};
+use pam_core::effects::shape::table::{blend_f64, TABLE_KNOTS, TABLE_LOADS, TABLE_SEGMENTS};
 use pam_core::effects::{ConstraintShape, StrokeTable};
 
 use super::*;
@@ -280,25 +278,9 @@ const BEHIND_REFERENCE: f64 = 1.05;
 /// The RMS pressure error, MPa, of the paper model `fam` with `shape` on
 /// the training samples (unweighted, as the reference surface's).
 fn pressure_rms(train: &TrainSet, fam: &LoadFamily, shape: &StaticShape) -> f64 {
-    let span = (fam.max_load_n - fam.min_load_n).max(1e-9);
-    let mut sq = 0.0;
-    for &(load, start, end) in &train.runs {
-        let m = fam.at_load(load);
-        let k = at_fraction_f64(&shape.nodes, (load - fam.min_load_n) / span);
-        let steps = (load.clamp(fam.min_load_n, fam.max_load_n) - fam.min_load_n) / fam.load_step_n;
-        let at = ConstraintShape::at_steps_f64(shape.coefficients, steps).0;
-        for i in start..end {
-            let (p, _) = ConstraintShape::pressure_and_slope_f64(
-                at,
-                Some(&k),
-                &m,
-                train.x[i],
-                train.branch[i],
-            );
-            sq += (p - train.p[i]).powi(2);
-        }
-    }
-    (sq / train.len().max(1) as f64).sqrt()
+    let mut miss = vec![0.0; train.len()];
+    train.table_pressure_misses(fam, Some(shape), &mut miss);
+    (miss.iter().map(|v| v * v).sum::<f64>() / train.len().max(1) as f64).sqrt()
 }
 
 /// The table from the variables `w0` on the paper model `theta`, the
@@ -363,14 +345,14 @@ pub(super) fn fit_static_shape(
             rms > BEHIND_REFERENCE * surface.training_rms_mpa
         });
         if behind {
-            let second = reference_start(&surface, &fam).and_then(|w0| search(&w0));
-            if let Some((m, refit, e)) = second {
-                let evaluations = e + found.as_ref().map_or(0, |f| f.2);
-                if found.as_ref().is_none_or(|f| m.cost < f.0.cost) {
-                    found = Some((m, refit, evaluations));
-                } else if let Some(f) = found.as_mut() {
-                    f.2 = evaluations;
-                }
+            if let Some(second) = reference_start(&surface, &fam).and_then(|w0| search(&w0)) {
+                // Both searches' evaluations are spent, whichever is kept.
+                let spent = second.2 + found.as_ref().map_or(0, |f| f.2);
+                let kept = match found {
+                    Some(first) if first.0.cost <= second.0.cost => first,
+                    _ => second,
+                };
+                found = Some((kept.0, kept.1, spent));
             }
         }
     }
