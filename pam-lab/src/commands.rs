@@ -134,6 +134,7 @@ pub fn fit_and_validate(
         heldout_errors: any_heldout.then(|| report.test.clone()),
         reference_heldout_rms_mpa: report.reference_test_rms_mpa.filter(|_| any_heldout),
         validation: validated.clone(),
+        segments: report.segments.clone(),
     };
     let origin = format!("pam-lab fit {} --holdout {}", record.source, report.holdout);
     let files = model_file::model_files(&report.params, &report.effects(), Some(summary), &origin)
@@ -272,6 +273,8 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
             report.test.total.pressure_rms_mpa / r
         );
     }
+    let isometric = report.test_kind == fit::TestKind::Isometric;
+    segments_text(&mut out, &report.segments, isometric);
     if let Some(v) = &outcome.validation {
         let _ = writeln!(
             out,
@@ -294,8 +297,31 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
             }
             None => out.push('\n'),
         }
+        segments_text(&mut out, &v.segments, isometric);
     }
     out
+}
+
+/// The errors per part of a record that has two or more, and how much of
+/// them is the parts' offsets from one another (in pressure for an
+/// isometric test, else in contraction).
+fn segments_text(
+    out: &mut String,
+    parts: &[crate::evaluate::errors::SegmentErrors],
+    isometric: bool,
+) {
+    use crate::evaluate::errors::{between_segments_share, segments_to_text};
+    if parts.len() < 2 {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "  per part of the record (model − measured, samples on a branch and under load): \
+         the parts' mean errors are {:.0} % of the {} error's mean square",
+        100.0 * between_segments_share(parts, isometric),
+        if isometric { "pressure" } else { "contraction" }
+    );
+    out.push_str(&segments_to_text(parts));
 }
 
 /// `pam-lab diagnose`'s work on a record checked by [`read_record`].

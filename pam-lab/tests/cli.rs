@@ -57,6 +57,60 @@ fn progress_is_a_line_per_stage_when_redirected() {
 }
 
 #[test]
+fn fit_reports_the_errors_of_each_part_of_a_joined_record() {
+    // Two tests of one muscle joined as `pam-lab import` joins them, the
+    // second needing 0.02 MPa more pressure throughout: the model fits
+    // between them, and the report shows each part's offset.
+    let rec = generate(
+        &Params::DEFAULT,
+        &Protocol::quick(&[100.0, 300.0]),
+        0.001,
+        0.0008,
+        5,
+    );
+    let span = rec.samples.last().unwrap().t_s + 0.1;
+    let mut text = String::from("t_s,load_n,pressure_mpa,contraction\n");
+    for (k, label) in ["test8.csv (new file)", "test9.csv (new file)"]
+        .iter()
+        .enumerate()
+    {
+        text.push_str(&format!("# segment: {label}\n"));
+        for s in &rec.samples {
+            text.push_str(&format!(
+                "{:.3},{},{:.5},{:.5}\n",
+                s.t_s + k as f64 * span,
+                s.load_n,
+                s.pressure_mpa + 0.02 * k as f64,
+                s.contraction
+            ));
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("joined.csv");
+    std::fs::write(&data, text).unwrap();
+    let out = dir.path().join("out");
+    let (ok, stdout, stderr) = pam_lab(&[
+        "fit",
+        data.to_str().unwrap(),
+        "--no-plot",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stdout}\n{stderr}");
+    assert!(stdout.contains("per part of the record"), "{stdout}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("model.json")).unwrap()).unwrap();
+    let parts = json["fit"]["segments"]
+        .as_array()
+        .expect("segments in model.json");
+    assert_eq!(parts.len(), 2, "{parts:?}");
+    assert_eq!(parts[1]["label"], "test9.csv (new file)");
+    let mean = |k: usize| parts[k]["pressure_mean_mpa"].as_f64().unwrap();
+    assert!(mean(0) > 0.005 && mean(1) < -0.005, "{parts:?}");
+    assert!((mean(0) - mean(1) - 0.02).abs() < 0.005, "{parts:?}");
+}
+
+#[test]
 fn fit_then_simulate_writes_every_output() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("rig.csv");

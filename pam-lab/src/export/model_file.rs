@@ -48,6 +48,10 @@ pub struct FitSummary {
     /// to (`--validate`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub validation: Option<crate::identify::fit::Validation>,
+    /// The model's errors per part of the record fitted (its `# segment`
+    /// seams); absent for a record of one run.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub segments: Vec<crate::evaluate::errors::SegmentErrors>,
 }
 
 /// The JSON model file. `params` is pam-core's [`Params`], whose keys carry

@@ -66,6 +66,24 @@ pub struct Record {
     pub samples: Vec<Sample>,
     /// The 1-based line of each sample in the source (for messages).
     pub lines: Vec<u64>,
+    /// Where the record's parts begin, in sample order: a `# segment:
+    /// LABEL` comment line, as `pam-lab import` writes one at each file it
+    /// joins and each clock reset. Empty for a record of one run.
+    pub segments: Vec<Segment>,
+}
+
+/// The comment that marks where a record's next part begins: `# segment:
+/// LABEL` on a line of its own, before the part's first sample.
+pub const SEGMENT_COMMENT: &str = "segment:";
+
+/// Where one part of a record begins (a test, a file, a run after a clock
+/// reset).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Segment {
+    /// Index of the part's first sample.
+    pub start: usize,
+    /// What the comment says about it (`10mm_15cm_Unkink_Test8.csv (new file)`).
+    pub label: String,
 }
 
 impl Record {
@@ -77,6 +95,7 @@ impl Record {
             source: source.into(),
             samples,
             lines,
+            segments: Vec::new(),
         }
     }
 
@@ -93,5 +112,51 @@ impl Record {
     /// Line of sample `i` in the source.
     pub fn line(&self, i: usize) -> u64 {
         self.lines.get(i).copied().unwrap_or(0)
+    }
+
+    /// The samples `i` with `keep(i)`, as a record named `source`: each
+    /// sample keeps its line, each segment starts at its first kept sample
+    /// (a segment with none is dropped).
+    pub fn subset(&self, source: String, keep: impl Fn(usize) -> bool) -> Record {
+        let mut out = Record {
+            source,
+            ..Record::default()
+        };
+        let mut seams = self.segments.iter().peekable();
+        let mut pending = None;
+        for (i, s) in self.samples.iter().enumerate() {
+            while let Some(seam) = seams.next_if(|seam| seam.start <= i) {
+                pending = Some(seam);
+            }
+            if keep(i) {
+                if let Some(seam) = pending.take() {
+                    out.segments.push(Segment {
+                        start: out.samples.len(),
+                        label: seam.label.clone(),
+                    });
+                }
+                out.samples.push(*s);
+                out.lines.push(self.line(i));
+            }
+        }
+        out
+    }
+
+    /// The record's parts as sample ranges with their labels: samples
+    /// before the first seam form a part labelled `(start)`. Empty for a
+    /// record without seams.
+    pub fn segment_ranges(&self) -> Vec<(&str, std::ops::Range<usize>)> {
+        let n = self.samples.len();
+        let mut out = Vec::with_capacity(self.segments.len() + 1);
+        if let Some(first) = self.segments.first() {
+            if first.start > 0 {
+                out.push(("(start)", 0..first.start.min(n)));
+            }
+        }
+        for (k, seam) in self.segments.iter().enumerate() {
+            let end = self.segments.get(k + 1).map_or(n, |next| next.start).min(n);
+            out.push((seam.label.as_str(), seam.start.min(end)..end));
+        }
+        out
     }
 }

@@ -179,8 +179,12 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
         .trim(csv::Trim::All)
         .from_reader(start);
     let mut row = csv::ByteRecord::new();
-    // The next row that is not a comment (`#` first) nor blank.
-    let read_row = |rdr: &mut csv::Reader<_>, row: &mut csv::ByteRecord, line: u64| loop {
+    // The next row that is not a comment (`#` first) nor blank; a `#
+    // segment: LABEL` comment on the way leaves its label in `seam`.
+    let read_row = |rdr: &mut csv::Reader<_>,
+                    row: &mut csv::ByteRecord,
+                    line: u64,
+                    seam: &mut Option<String>| loop {
         let more = rdr.read_byte_record(row).map_err(|e| {
             if over.get() {
                 return err(0, None, DataErrorKind::TooLarge);
@@ -196,10 +200,20 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
         if !blank && !first.starts_with(b"#") {
             return Ok(true);
         }
+        // The comment's fields, trimmed by the reader, joined as a list.
+        let comment: Vec<_> = row.iter().map(String::from_utf8_lossy).collect();
+        if let Some(label) = comment.join(", ").strip_prefix('#').and_then(|c| {
+            c.trim_start()
+                .strip_prefix(SEGMENT_COMMENT)
+                .map(|l| l.trim().to_string())
+        }) {
+            *seam = Some(label);
+        }
     };
 
     // Header.
-    if !read_row(&mut rdr, &mut row, 0)? {
+    let mut seam = None;
+    if !read_row(&mut rdr, &mut row, 0, &mut seam)? {
         return Err(err(0, None, DataErrorKind::NoHeader));
     }
     // The csv reader's byte offsets start after a skipped byte-order mark.
@@ -223,9 +237,10 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
 
     let mut samples = Vec::new();
     let mut line_numbers = Vec::new();
+    let mut segments = Vec::new();
     let mut previous_t: Option<f64> = None;
     let mut last_line = header_line;
-    while read_row(&mut rdr, &mut row, last_line)? {
+    while read_row(&mut rdr, &mut row, last_line, &mut seam)? {
         let line = line_at(&row);
         last_line = line;
         if samples.len() >= MAX_ROWS {
@@ -289,6 +304,12 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
             };
             err(line, Some(col), kind)
         })?;
+        if let Some(label) = seam.take() {
+            segments.push(Segment {
+                start: samples.len(),
+                label,
+            });
+        }
         samples.push(s);
         line_numbers.push(line);
     }
@@ -299,6 +320,7 @@ pub fn parse_csv<R: Read>(source: &str, reader: R) -> Result<Record, DataError> 
         source: source.to_string(),
         samples,
         lines: line_numbers,
+        segments,
     })
 }
 

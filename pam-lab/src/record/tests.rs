@@ -29,6 +29,65 @@ fn reads_columns_in_any_order_with_extras_and_comments() {
 }
 
 #[test]
+fn segment_comments_mark_where_the_records_parts_begin() {
+    let r = parse(
+        "# segment: a.csv (new file)\nt_s,load_n,pressure_mpa,contraction\n\
+         0,100,0.1,0.01\n0.1,100,0.2,0.02\n# segment: b.csv:9: the clock restarts, 0.1 s after 7 s\n\
+         0.2,100,0.3,0.03\n# a note, not a seam\n0.3,100,0.4,0.04\n",
+    )
+    .unwrap();
+    assert_eq!(
+        r.segments,
+        vec![
+            Segment {
+                start: 0,
+                label: "a.csv (new file)".into()
+            },
+            Segment {
+                start: 2,
+                label: "b.csv:9: the clock restarts, 0.1 s after 7 s".into()
+            },
+        ]
+    );
+    let ranges: Vec<_> = r.segment_ranges();
+    assert_eq!(
+        ranges,
+        vec![
+            ("a.csv (new file)", 0..2),
+            ("b.csv:9: the clock restarts, 0.1 s after 7 s", 2..4)
+        ]
+    );
+    // A subset keeps each part that keeps a sample, from its first kept one.
+    let odd = r.subset("odd".into(), |i| i % 2 == 1);
+    assert_eq!(odd.lines, vec![4, 8]);
+    assert_eq!(
+        odd.segment_ranges()
+            .iter()
+            .map(|(_, range)| range.clone())
+            .collect::<Vec<_>>(),
+        vec![0..1, 1..2]
+    );
+    let tail = r.subset("tail".into(), |i| i == 3);
+    assert_eq!(tail.segments.len(), 1);
+    assert_eq!(
+        tail.segments[0].label,
+        "b.csv:9: the clock restarts, 0.1 s after 7 s"
+    );
+    // Samples before the first seam are a part of their own.
+    let late = parse(
+        "t_s,load_n,pressure_mpa,contraction\n0,100,0.1,0.01\n# segment: b\n0.1,100,0.2,0.02\n",
+    )
+    .unwrap();
+    assert_eq!(late.segment_ranges(), vec![("(start)", 0..1), ("b", 1..2)]);
+    assert!(
+        parse("t_s,load_n,pressure_mpa,contraction\n0,100,0.1,0.01\n")
+            .unwrap()
+            .segment_ranges()
+            .is_empty()
+    );
+}
+
+#[test]
 fn missing_column_names_the_column_and_the_header_line() {
     let e = parse("t_s,load_n,contraction\n0,100,0.02\n").unwrap_err();
     assert_eq!(e.kind, DataErrorKind::MissingColumn);

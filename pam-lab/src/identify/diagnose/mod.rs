@@ -200,17 +200,7 @@ fn diagnose_beside(
     // The training part keeps the file's line numbers, so that a refusal
     // of the base fit points at the record's own lines.
     let keep = |i: &usize| !heldout[*i] && !excluded[*i];
-    let train_record = Record {
-        source: format!("{} (training part)", record.source),
-        samples: (0..samples.len())
-            .filter(keep)
-            .map(|i| record.samples[i])
-            .collect(),
-        lines: (0..samples.len())
-            .filter(keep)
-            .map(|i| record.line(i))
-            .collect(),
-    };
+    let train_record = record.subset(format!("{} (training part)", record.source), |i| keep(&i));
     let mut fit_cfg = cfg.fit.clone();
     fit_cfg.holdout = Holdout::None;
     // The base is the paper's model alone: a static shape fitted on the

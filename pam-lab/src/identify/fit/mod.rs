@@ -70,7 +70,7 @@ pub use test_kind::{detect_test, slack_mask, TestKind};
 use pam_core::{Branch, Coeffs, LoadFamily, Params};
 use serde::Serialize;
 
-use crate::evaluate::errors::{error_table, load_bin, ErrorTable};
+use crate::evaluate::errors::{error_table, load_bin, segment_errors, ErrorTable, SegmentErrors};
 use crate::identify::lsq;
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::{split_branches, Split, SplitConfig};
@@ -482,7 +482,15 @@ pub fn fit_with_progress(
         .as_ref()
         .and_then(|r| r.rms_mpa(samples, |i| labelled(i) && (heldout[i] || !any_heldout)))
         .map(|(rms, _)| rms);
+    let segments = segment_errors(
+        &coeffs,
+        constraint_shape.as_ref(),
+        record,
+        &split.branch,
+        |i| !slack[i],
+    );
     Ok(FitReport {
+        segments,
         params,
         coeffs,
         constraint_shape,

@@ -120,6 +120,10 @@ pub struct FitReport {
     pub reference: Option<ReferenceSurface>,
     /// The reference's RMS pressure error on the samples of `test`, MPa.
     pub reference_test_rms_mpa: Option<f64>,
+    /// Errors per part of the record fitted (its `# segment` seams), on its
+    /// samples on a branch and under load, training and held-out; empty
+    /// for a record of one run.
+    pub segments: Vec<SegmentErrors>,
 }
 
 impl FitReport {
@@ -155,6 +159,10 @@ pub struct Validation {
     pub model: ErrorTable,
     /// The reference surface's RMS pressure error on the same samples, MPa.
     pub reference_rms_mpa: Option<f64>,
+    /// The model's errors per part of the record (its `# segment` seams:
+    /// the tests `pam-lab import` joined); empty for a record of one run.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub segments: Vec<SegmentErrors>,
 }
 
 /// Evaluate a fit on another record: its branches split as the fit split
@@ -175,6 +183,13 @@ pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validat
     );
     Validation {
         source: record.source.clone(),
+        segments: segment_errors(
+            &report.coeffs,
+            report.constraint_shape.as_ref(),
+            record,
+            &split.branch,
+            |i| !slack[i],
+        ),
         model,
         reference_rms_mpa: report
             .reference

@@ -73,7 +73,9 @@ impl Imported {
         let mut seams = self.segments.iter().peekable();
         for (i, s) in self.samples.iter().enumerate() {
             while let Some((_, why)) = seams.next_if(|(at, _)| *at == i) {
-                out.push_str("# segment: ");
+                out.push_str("# ");
+                out.push_str(crate::record::SEGMENT_COMMENT);
+                out.push(' ');
                 out.push_str(why);
                 out.push('\n');
             }
