@@ -7,8 +7,10 @@
 //! root than the cubic allows, and differently at each load; a
 //! Chou–Hannaford or Tondu–Lopez muscle is hyperbolic at its end. The paper's
 //! model then fits only by pressing against its own shape conditions at some
-//! load. This stage keeps the first stage's paper model (its stroke ends,
-//! load factors and ellipse) and fits the table: at each of
+//! load. This stage keeps a paper model of the first stage (its stroke
+//! ends, load factors and ellipse: the lower of its two minima, from the
+//! data's start point and from the anchor, `fit_with_progress`) and fits
+//! the table: at each of
 //! [`TABLE_LOADS`] loads, a monotone piecewise-linear map of the stroke
 //! fraction, each sample's pressure evaluated as the feedforward evaluates
 //! it (pam-core's `f64` path, [`ConstraintShape::pressure_and_slope_f64`]).
@@ -40,12 +42,10 @@
 //! follow the surface ([`reference_start`]), where that table starts
 //! closer to the samples than the identity, with the first search's
 //! evaluations and on only while it keeps up with it ([`search_from`]'s
-//! race), and the lower training cost is kept. On the Festo records with
-//! every fourth training cycle held out this took 40 cm's test 10 from
-//! 1.45× to 1.15× the reference surface; the first search was behind on 6
-//! of the 18 fits of six lengths and three holdouts, the second ran on 3
-//! and changed no other (`pam-lab/README.md`, "How firm these ratios
-//! are").
+//! race), and the lower training cost is kept. On the Festo records (18
+//! fits: six lengths, three holdouts) the second search runs on 2 and is
+//! kept on one, 25 cm with every fourth training cycle held out
+//! (`pam-lab/README.md`, "How firm these ratios are").
 //!
 //! The stage's model is kept only when it earns its parameters: Bayesian
 //! information criterion on the training residuals
