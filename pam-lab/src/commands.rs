@@ -274,7 +274,10 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
         );
     }
     let isometric = report.test_kind == fit::TestKind::Isometric;
-    segments_text(&mut out, &report.segments, isometric);
+    out.push_str(&crate::evaluate::errors::segments_report(
+        &report.segments,
+        isometric,
+    ));
     if let Some(v) = &outcome.validation {
         let _ = writeln!(
             out,
@@ -297,31 +300,12 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
             }
             None => out.push('\n'),
         }
-        segments_text(&mut out, &v.segments, isometric);
+        out.push_str(&crate::evaluate::errors::segments_report(
+            &v.segments,
+            isometric,
+        ));
     }
     out
-}
-
-/// The errors per part of a record that has two or more, and how much of
-/// them is the parts' offsets from one another (in pressure for an
-/// isometric test, else in contraction).
-fn segments_text(
-    out: &mut String,
-    parts: &[crate::evaluate::errors::SegmentErrors],
-    isometric: bool,
-) {
-    use crate::evaluate::errors::{between_segments_share, segments_to_text};
-    if parts.len() < 2 {
-        return;
-    }
-    let _ = writeln!(
-        out,
-        "  per part of the record (model − measured, samples on a branch and under load): \
-         the parts' mean errors are {:.0} % of the {} error's mean square",
-        100.0 * between_segments_share(parts, isometric),
-        if isometric { "pressure" } else { "contraction" }
-    );
-    out.push_str(&segments_to_text(parts));
 }
 
 /// `pam-lab diagnose`'s work on a record checked by [`read_record`].

@@ -201,6 +201,28 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
     eprintln!("validation pressure RMS: model {model:.4} MPa, reference {reference:.4} MPa");
     assert!(model.is_finite() && model > 0.0, "{model}");
     assert!(stdout.contains("reference surface"), "{stdout}");
+    // The errors per test: each part of both records that has samples
+    // under load, named by its seam, its samples adding up to the total.
+    let test_seams = std::fs::read_to_string(out.join("test.csv"))
+        .unwrap()
+        .matches("# segment")
+        .count();
+    let parts = v["segments"].as_array().expect("validation.segments");
+    assert!(parts.len() >= 2 && parts.len() <= test_seams, "{parts:?}");
+    assert!(parts
+        .iter()
+        .all(|p| p["label"].as_str().unwrap().contains("_Test10.csv")));
+    let in_parts: u64 = parts
+        .iter()
+        .map(|p| p["stats"]["samples"].as_u64().unwrap())
+        .sum();
+    assert_eq!(in_parts, v["model"]["total"]["samples"].as_u64().unwrap());
+    let fitted_parts = json["fit"]["segments"].as_array().expect("fit.segments");
+    assert!(
+        fitted_parts.len() >= 2 && fitted_parts.len() <= 9,
+        "{fitted_parts:?}"
+    );
+    assert!(stdout.contains("per part of the record"), "{stdout}");
     // The Chou–Hannaford curve is outside the cubic family: fit adds the
     // static shape's stroke table (blob version 3), and with it and the
     // hysteresis the model predicts the other test no worse than the
@@ -323,6 +345,10 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
     eprintln!("validation pressure RMS: base {base:.4}, diagnosed {model:.4}, reference {reference:.4} MPa");
     assert!(model.is_finite() && reference.is_finite());
     assert!(model < base, "{model} vs {base}");
+    // The diagnosed model's errors per test of the validation record.
+    let parts = v["segments"].as_array().expect("validation.segments");
+    assert!(parts.len() >= 2, "{parts:?}");
+    assert!(stdout.contains("per part of the record"), "{stdout}");
     // This muscle's static curve is outside the cubic family: the shape is
     // named.
     assert_eq!(report["named"], "constraint_shape");

@@ -241,15 +241,26 @@ pub fn segment_errors(
     include: impl Fn(usize) -> bool,
 ) -> Vec<SegmentErrors> {
     let mut cache = ModelCache::new(coeffs, shape);
+    segment_errors_of(record, |i| {
+        let br = branch.get(i).copied().flatten()?;
+        include(i).then(|| cache.errors(&record.samples[i], br))
+    })
+}
+
+/// Errors per part of `record` (its `# segment` seams) from each sample's
+/// residuals, `residual(i)` = (pressure, contraction), predicted −
+/// measured, or `None` for a sample not judged; a sample with a residual
+/// that is not finite is left out, and so is a part without samples.
+/// Empty for a record without seams.
+pub fn segment_errors_of(
+    record: &Record,
+    mut residual: impl FnMut(usize) -> Option<(f64, f64)>,
+) -> Vec<SegmentErrors> {
     let mut out = Vec::new();
     for (label, range) in record.segment_ranges() {
         let mut acc = Acc::default();
         for i in range {
-            let Some(br) = branch.get(i).copied().flatten() else {
-                continue;
-            };
-            if include(i) {
-                let (ep, ex) = cache.errors(&record.samples[i], br);
+            if let Some((ep, ex)) = residual(i).filter(|(p, x)| p.is_finite() && x.is_finite()) {
                 acc.add(ep, ex);
             }
         }
@@ -287,6 +298,23 @@ pub fn between_segments_share(parts: &[SegmentErrors], pressure: bool) -> f64 {
     } else {
         f64::NAN
     }
+}
+
+/// The report's lines for a record of two parts or more (nothing for
+/// fewer): how much of the error's mean square is the parts' offsets from
+/// one another (in pressure for an isometric test, else in contraction),
+/// and [`segments_to_text`]'s table.
+pub fn segments_report(parts: &[SegmentErrors], isometric: bool) -> String {
+    if parts.len() < 2 {
+        return String::new();
+    }
+    format!(
+        "  per part of the record (model − measured, samples on a branch and under load): \
+         the parts' mean errors are {:.0} % of the {} error's mean square\n{}",
+        100.0 * between_segments_share(parts, isometric),
+        if isometric { "pressure" } else { "contraction" },
+        segments_to_text(parts)
+    )
 }
 
 /// A plain-text table of [`SegmentErrors`], one line a part.

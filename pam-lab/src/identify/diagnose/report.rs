@@ -56,6 +56,11 @@ pub struct DiagnoseValidation {
     pub base: ValidationErrors,
     /// The diagnosed model, its effects in.
     pub model: ValidationErrors,
+    /// The diagnosed model's errors per part of the record (its `#
+    /// segment` seams: the tests `pam-lab import` joined); empty for a
+    /// record of one run.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub segments: Vec<crate::evaluate::errors::SegmentErrors>,
     /// The reference surface ([`crate::identify::reference::ReferenceSurface`]) fitted to every
     /// labelled, loaded sample of the diagnosed record: RMS pressure error
     /// on the same samples, MPa.
@@ -378,6 +383,10 @@ pub fn summary(r: &DiagnoseReport) -> String {
             )),
             None => s.push('\n'),
         }
+        s.push_str(&crate::evaluate::errors::segments_report(
+            &v.segments,
+            r.test_kind == crate::identify::fit::TestKind::Isometric,
+        ));
     }
     for w in &r.warnings {
         s.push_str(&format!("warning: {w}\n"));

@@ -9,7 +9,7 @@ use super::config::{DiagnoseConfig, PRESSURE_MEDIAN_HALF_WIDTH};
 use super::evaluate::simulate;
 use super::prepare::{denoise_pressure, inverse_tables, record_branches, tracker_config};
 use super::report::{DiagnoseReport, DiagnoseValidation, ValidationErrors};
-use crate::evaluate::errors::rms_where;
+use crate::evaluate::errors::{rms_where, segment_errors_of};
 use crate::identify::fit::{detect_test, slack_mask, TestKind};
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::split_branches;
@@ -36,13 +36,14 @@ pub fn validate(
     );
     let noise = crate::evaluate::errors::noise_floor(raw);
     let tables = inverse_tables(test == TestKind::Isometric);
+    // A model's errors, and its errors per part of the record.
     let errors = |params: &Params, effects: &Effects| {
         let nan = ValidationErrors {
             pressure_rms_mpa: f64::NAN,
             contraction_rms: f64::NAN,
         };
         let Ok(coeffs) = Coeffs::new(*params) else {
-            return nan;
+            return (nan, Vec::new());
         };
         // Up to the model's `Pmax`, where its stroke ends: a contraction
         // beyond what the model reaches is predicted at `Pmax`, as the
@@ -68,10 +69,12 @@ pub fn validate(
         let p_res: Vec<f64> = p.iter().zip(raw).map(|(p, s)| p - s.pressure_mpa).collect();
         let x = simulate(&coeffs, *effects, tracker, &samples, &branches, tables);
         let x_res: Vec<f64> = x.iter().zip(raw).map(|(x, s)| x - s.contraction).collect();
-        ValidationErrors {
+        let parts = segment_errors_of(validation, |i| include(i).then(|| (p_res[i], x_res[i])));
+        let errors = ValidationErrors {
             pressure_rms_mpa: rms_where(&p_res, include).0,
             contraction_rms: rms_where(&x_res, include).0,
-        }
+        };
+        (errors, parts)
     };
     let own = &record.samples;
     let own_test = detect_test(own);
@@ -87,11 +90,13 @@ pub fn validate(
             .rms_mpa(&delayed(raw), include)
             .map(|(rms, _)| rms)
     });
+    let (model, segments) = errors(&report.final_params, &report.effects);
     DiagnoseValidation {
         source: validation.source.clone(),
         samples: (0..raw.len()).filter(|&i| include(i)).count(),
-        base: errors(&report.base_params, &report.base_effects),
-        model: errors(&report.final_params, &report.effects),
+        base: errors(&report.base_params, &report.base_effects).0,
+        model,
+        segments,
         reference_rms_mpa: reference
             .and_then(|r| r.rms_mpa(raw, include))
             .map(|(rms, _)| rms),
