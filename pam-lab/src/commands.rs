@@ -274,7 +274,7 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
         );
     }
     let isometric = report.test_kind == fit::TestKind::Isometric;
-    out.push_str(&crate::evaluate::errors::segments_report(
+    out.push_str(&crate::evaluate::segments::segments_report(
         &report.segments,
         isometric,
     ));
@@ -300,7 +300,7 @@ pub fn fit_text(outcome: &FitOutcome, record: &Record, cfg: &FitConfig) -> Strin
             }
             None => out.push('\n'),
         }
-        out.push_str(&crate::evaluate::errors::segments_report(
+        out.push_str(&crate::evaluate::segments::segments_report(
             &v.segments,
             isometric,
         ));

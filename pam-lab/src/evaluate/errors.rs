@@ -12,7 +12,7 @@ use pam_core::effects::{ConstraintShape, ShapeInverse};
 use pam_core::{Branch, Coeffs, LoadModel};
 use serde::{Deserialize, Serialize};
 
-use crate::record::{Record, Sample};
+use crate::record::Sample;
 
 /// Error statistics of one group of samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -30,7 +30,7 @@ pub struct ErrorStats {
 }
 
 #[derive(Clone, Copy, Default)]
-struct Acc {
+pub(super) struct Acc {
     n: usize,
     sp: f64,
     mp: f64,
@@ -42,7 +42,7 @@ struct Acc {
 }
 
 impl Acc {
-    fn add(&mut self, ep: f64, ex: f64) {
+    pub(super) fn add(&mut self, ep: f64, ex: f64) {
         self.n += 1;
         self.bp += ep;
         self.bx += ex;
@@ -51,7 +51,17 @@ impl Acc {
         self.sx += ex * ex;
         self.mx = self.mx.max(ex.abs());
     }
-    fn stats(&self) -> ErrorStats {
+    /// The mean signed errors, (pressure, contraction); `NaN` without
+    /// samples.
+    pub(super) fn means(&self) -> (f64, f64) {
+        if self.n == 0 {
+            return (f64::NAN, f64::NAN);
+        }
+        let n = self.n as f64;
+        (self.bp / n, self.bx / n)
+    }
+
+    pub(super) fn stats(&self) -> ErrorStats {
         let n = self.n.max(1) as f64;
         ErrorStats {
             samples: self.n,
@@ -215,134 +225,6 @@ pub fn error_table(
     }
 }
 
-/// Errors of one part of a record ([`crate::record::Segment`]): a test, a
-/// file, a run after a clock reset.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SegmentErrors {
-    /// The part's label.
-    pub label: String,
-    /// Its errors.
-    pub stats: ErrorStats,
-    /// Mean predicted − measured pressure, MPa: how far the part as a whole
-    /// sits from the model.
-    pub pressure_mean_mpa: f64,
-    /// Mean predicted − measured contraction.
-    pub contraction_mean: f64,
-}
-
-/// [`error_table`]'s errors per part of `record` (its `# segment` seams),
-/// on the samples with `branch[i]` labelled and `include(i)` true; a part
-/// without such samples is left out. Empty for a record without seams.
-pub fn segment_errors(
-    coeffs: &Coeffs,
-    shape: Option<&ConstraintShape>,
-    record: &Record,
-    branch: &[Option<Branch>],
-    include: impl Fn(usize) -> bool,
-) -> Vec<SegmentErrors> {
-    let mut cache = ModelCache::new(coeffs, shape);
-    segment_errors_of(record, |i| {
-        let br = branch.get(i).copied().flatten()?;
-        include(i).then(|| cache.errors(&record.samples[i], br))
-    })
-}
-
-/// Errors per part of `record` (its `# segment` seams) from each sample's
-/// residuals, `residual(i)` = (pressure, contraction), predicted −
-/// measured, or `None` for a sample not judged; a sample with a residual
-/// that is not finite is left out, and so is a part without samples.
-/// Empty for a record without seams.
-pub fn segment_errors_of(
-    record: &Record,
-    mut residual: impl FnMut(usize) -> Option<(f64, f64)>,
-) -> Vec<SegmentErrors> {
-    let mut out = Vec::new();
-    for (label, range) in record.segment_ranges() {
-        let mut acc = Acc::default();
-        for i in range {
-            if let Some((ep, ex)) = residual(i).filter(|(p, x)| p.is_finite() && x.is_finite()) {
-                acc.add(ep, ex);
-            }
-        }
-        if acc.n > 0 {
-            out.push(SegmentErrors {
-                label: label.to_string(),
-                stats: acc.stats(),
-                pressure_mean_mpa: acc.bp / acc.n as f64,
-                contraction_mean: acc.bx / acc.n as f64,
-            });
-        }
-    }
-    out
-}
-
-/// The share of the errors' mean square that is each part's mean error
-/// (the parts' offsets from one another and from the model), in
-/// pressure or in contraction: `Σ n·mean² / Σ n·rms²`; `NaN` without
-/// samples. A share near 1 says the parts disagree as wholes (a drift
-/// between tests, a rig reset); near 0, that the error lies within each.
-pub fn between_segments_share(parts: &[SegmentErrors], pressure: bool) -> f64 {
-    let (mut between, mut all) = (0.0, 0.0);
-    for p in parts {
-        let n = p.stats.samples as f64;
-        let (mean, rms) = if pressure {
-            (p.pressure_mean_mpa, p.stats.pressure_rms_mpa)
-        } else {
-            (p.contraction_mean, p.stats.contraction_rms)
-        };
-        between += n * mean * mean;
-        all += n * rms * rms;
-    }
-    if all > 0.0 {
-        between / all
-    } else {
-        f64::NAN
-    }
-}
-
-/// The report's lines for a record of two parts or more (nothing for
-/// fewer): how much of the error's mean square is the parts' offsets from
-/// one another (in pressure for an isometric test, else in contraction),
-/// and [`segments_to_text`]'s table.
-pub fn segments_report(parts: &[SegmentErrors], isometric: bool) -> String {
-    if parts.len() < 2 {
-        return String::new();
-    }
-    format!(
-        "  per part of the record (model − measured, samples on a branch and under load): \
-         the parts' mean errors are {:.0} % of the {} error's mean square\n{}",
-        100.0 * between_segments_share(parts, isometric),
-        if isometric { "pressure" } else { "contraction" },
-        segments_to_text(parts)
-    )
-}
-
-/// A plain-text table of [`SegmentErrors`], one line a part.
-pub fn segments_to_text(parts: &[SegmentErrors]) -> String {
-    let width = parts
-        .iter()
-        .map(|p| p.label.chars().count())
-        .max()
-        .unwrap_or(4)
-        .max(4);
-    let mut s = format!(
-        "  {:<width$}  samples  p_mean_mpa  p_rms_mpa  x_mean     x_rms\n",
-        "part"
-    );
-    for p in parts {
-        s.push_str(&format!(
-            "  {:<width$}  {:>7}  {:>+10.5}  {:>9.5}  {:>+9.6}  {:>8.6}\n",
-            p.label,
-            p.stats.samples,
-            p.pressure_mean_mpa,
-            p.stats.pressure_rms_mpa,
-            p.contraction_mean,
-            p.stats.contraction_rms
-        ));
-    }
-    s
-}
-
 impl ErrorTable {
     /// A plain-text table: one line per group and a total line.
     pub fn to_text(&self) -> String {
@@ -408,64 +290,6 @@ mod tests {
         assert_eq!(t.groups.len(), 1);
         assert!((t.total.pressure_rms_mpa - 0.01).abs() < 1e-3);
         assert!(t.to_text().contains("contraction"));
-    }
-
-    #[test]
-    fn parts_offset_from_one_another_show_in_their_means_and_share() {
-        let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
-        let m = coeffs.load_model(200.0).unwrap();
-        let mut samples = Vec::new();
-        let mut branch = Vec::new();
-        // Two tests of the same loop, the second needing 0.01 MPa less
-        // pressure for every contraction, the first 0.01 MPa more.
-        for offset in [0.01, -0.01] {
-            for k in 1..40 {
-                let p = 0.01 * k as f32;
-                let x = f64::from(m.contraction(p, Branch::Contraction));
-                samples.push(Sample {
-                    t_s: samples.len() as f64,
-                    load_n: 200.0,
-                    pressure_mpa: f64::from(p) + offset,
-                    contraction: x,
-                });
-                branch.push(Some(Branch::Contraction));
-            }
-        }
-        let mut record = Record::from_samples("two tests", samples);
-        record.segments = vec![
-            crate::record::Segment {
-                start: 0,
-                label: "test 8".into(),
-            },
-            crate::record::Segment {
-                start: 39,
-                label: "test 9".into(),
-            },
-        ];
-        let parts = segment_errors(&coeffs, None, &record, &branch, |_| true);
-        assert_eq!(parts.len(), 2);
-        assert_eq!(parts[0].stats.samples, 39);
-        assert!(
-            (parts[0].pressure_mean_mpa + 0.01).abs() < 5e-4,
-            "{parts:?}"
-        );
-        assert!(
-            (parts[1].pressure_mean_mpa - 0.01).abs() < 5e-4,
-            "{parts:?}"
-        );
-        let share = between_segments_share(&parts, true);
-        assert!(share > 0.95 && share <= 1.0, "{share}");
-        assert!(segments_to_text(&parts).contains("test 9"));
-        // Within each test the same error with alternating signs: no offset.
-        for (i, s) in record.samples.iter_mut().enumerate() {
-            s.pressure_mpa -= if i < 39 { 0.01 } else { -0.01 };
-            s.pressure_mpa += if i % 2 == 0 { 0.01 } else { -0.01 };
-        }
-        let parts = segment_errors(&coeffs, None, &record, &branch, |_| true);
-        assert!(between_segments_share(&parts, true) < 0.01);
-        // A record without seams has no parts.
-        record.segments.clear();
-        assert!(segment_errors(&coeffs, None, &record, &branch, |_| true).is_empty());
     }
 }
 

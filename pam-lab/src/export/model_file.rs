@@ -51,7 +51,7 @@ pub struct FitSummary {
     /// The model's errors per part of the record fitted (its `# segment`
     /// seams); absent for a record of one run.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub segments: Vec<crate::evaluate::errors::SegmentErrors>,
+    pub segments: Vec<crate::evaluate::segments::SegmentErrors>,
 }
 
 /// The JSON model file. `params` is pam-core's [`Params`], whose keys carry

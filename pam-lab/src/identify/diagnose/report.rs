@@ -60,7 +60,7 @@ pub struct DiagnoseValidation {
     /// segment` seams: the tests `pam-lab import` joined); empty for a
     /// record of one run.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub segments: Vec<crate::evaluate::errors::SegmentErrors>,
+    pub segments: Vec<crate::evaluate::segments::SegmentErrors>,
     /// The reference surface ([`crate::identify::reference::ReferenceSurface`]) fitted to every
     /// labelled, loaded sample of the diagnosed record: RMS pressure error
     /// on the same samples, MPa.
@@ -383,7 +383,7 @@ pub fn summary(r: &DiagnoseReport) -> String {
             )),
             None => s.push('\n'),
         }
-        s.push_str(&crate::evaluate::errors::segments_report(
+        s.push_str(&crate::evaluate::segments::segments_report(
             &v.segments,
             r.test_kind == crate::identify::fit::TestKind::Isometric,
         ));

@@ -70,7 +70,8 @@ pub use test_kind::{detect_test, slack_mask, TestKind};
 use pam_core::{Branch, Coeffs, LoadFamily, Params};
 use serde::Serialize;
 
-use crate::evaluate::errors::{error_table, load_bin, segment_errors, ErrorTable, SegmentErrors};
+use crate::evaluate::errors::{error_table, load_bin, ErrorTable};
+use crate::evaluate::segments::{segment_errors, SegmentErrors};
 use crate::identify::lsq;
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::{split_branches, Split, SplitConfig};
