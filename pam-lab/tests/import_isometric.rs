@@ -496,8 +496,34 @@ fn diagnosed_with(sensor: Sensor) -> (serde_json::Value, Vec<u8>) {
     ]);
     assert!(ok, "{stdout}{stderr}");
     eprintln!("{stdout}{stderr}");
-    let report =
+    // The static fits run side by side before the rounds (seconds each on
+    // a long record) each say when they are done, so a redirected stderr
+    // is not silent while they run.
+    let progress = |what: &str| {
+        stderr
+            .lines()
+            .any(|l| l.starts_with('[') && l.contains(what) && l.contains(": fitted"))
+    };
+    assert!(
+        progress("the paper's model on the training part"),
+        "{stderr}"
+    );
+    assert!(
+        progress("fit's static shape on the training part"),
+        "{stderr}"
+    );
+    assert!(
+        progress("the static model pam-lab fit writes for the whole record"),
+        "{stderr}"
+    );
+    let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).unwrap()).unwrap();
+    if report["effects_added"]
+        .as_array()
+        .is_some_and(|a| a.iter().any(|e| e == "pressure_delay"))
+    {
+        assert!(progress("with each pressure taken"), "{stderr}");
+    }
     (report, std::fs::read(diag.join("model.blob")).unwrap())
 }
 

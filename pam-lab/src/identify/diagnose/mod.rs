@@ -138,10 +138,19 @@ pub fn diagnose_with_progress(
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<DiagnoseReport, DiagnoseError> {
     std::thread::scope(|scope| {
-        let as_fit = cfg
-            .fit
-            .static_shape
-            .then(|| scope.spawn(|| static_model_as_fit_writes(record, &cfg.fit)));
+        let as_fit = cfg.fit.static_shape.then(|| {
+            scope.spawn(|| {
+                let model = static_model_as_fit_writes(record, &cfg.fit);
+                progress(&format!(
+                    "the static model pam-lab fit writes for the whole record: {}",
+                    match &model {
+                        Some(_) => "fitted",
+                        None => "none (fit refuses it or keeps no table)",
+                    }
+                ));
+                model
+            })
+        });
         diagnose_beside(record, cfg, progress, move || {
             as_fit.and_then(parallel::joined)
         })
@@ -275,7 +284,12 @@ fn diagnose_beside(
     let (fit, stroke_table, delayed_static) = std::thread::scope(|scope| {
         let table = with_table.then(|| {
             scope.spawn(|| {
-                static_model_of(&train_record, &table_cfg).map(|(params, shape, _)| (params, shape))
+                let model = static_model_of(&train_record, &table_cfg);
+                progress(&static_fitted(
+                    "fit's static shape on the training part",
+                    &model,
+                ));
+                model.map(|(params, shape, _)| (params, shape))
             })
         });
         // The delay estimated and its two neighbours a step apart, each
@@ -300,7 +314,16 @@ fn diagnose_beside(
                         ),
                         ..train_record.clone()
                     };
-                    static_model_of(&retimed, delayed_cfg).map(|(params, shape, rms)| {
+                    let model = static_model_of(&retimed, delayed_cfg);
+                    progress(&static_fitted(
+                        &format!(
+                            "fit's static model on the training part with each pressure taken \
+                             {:.1} ms earlier",
+                            1e3 * d.delay_s
+                        ),
+                        &model,
+                    ));
+                    model.map(|(params, shape, rms)| {
                         (
                             rms,
                             evaluate::DelayedStatic {
@@ -314,6 +337,12 @@ fn diagnose_beside(
             })
             .collect();
         let fit = crate::identify::fit::fit(&train_record, &fit_cfg);
+        if let Ok(f) = &fit {
+            progress(&format!(
+                "the paper's model on the training part: fitted, training RMS {:.5} MPa",
+                f.train.total.pressure_rms_mpa
+            ));
+        }
         (
             fit,
             table.and_then(parallel::joined),
@@ -675,6 +704,16 @@ type StaticModel = (
     pam_core::effects::ConstraintShape,
     usize,
 );
+
+/// The progress line of one of the static fits the diagnosis runs side by
+/// side before its rounds (each takes seconds on a long record): `what`,
+/// and its training RMS, or that fit refused it or kept no table.
+fn static_fitted<T>(what: &str, model: &Option<(pam_core::Params, T, f64)>) -> String {
+    match model {
+        Some((_, _, rms)) => format!("{what}: fitted, training RMS {rms:.5} MPa"),
+        None => format!("{what}: none (fit refuses it or keeps no table)"),
+    }
+}
 
 /// fit's static model (the paper's model and the stroke table) on
 /// `record` with `fit_cfg`'s options, its hold-out included, as `pam-lab
