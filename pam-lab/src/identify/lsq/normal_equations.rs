@@ -17,10 +17,15 @@
 //! 1)³)`; a step that does not lower the cost is refused and `λ` grows by
 //! a factor that doubles with each refusal. It stops as MINPACK's `ftol`
 //! and `xtol` do (relative reductions, actual and predicted, both below
-//! `√ε`; a step below `√ε` of the scaled parameters), or at the limits'
-//! evaluations and Jacobians.
+//! `√ε`; a step below `√ε` of the scaled parameters), where the cost has
+//! stalled as [`super::minimize`] judges it ([`super::STALL_JACOBIANS`]),
+//! or at the limits' evaluations and Jacobians. Without the stall rule a
+//! heavily damped search crept on with each step's predicted reduction
+//! just above `√ε`: fit's stroke table on diagnose's training part of
+//! Festo 40 cm took 1 211 Jacobians (19 s) to lower its cost by 1.8 %, a
+//! Jacobian each step (the patience counts the trial evaluations only).
 
-use super::{jacobian, Limits, Minimum, Residuals};
+use super::{jacobian, stalled, Limits, Minimum, Residuals};
 use levenberg_marquardt::TerminationReason;
 use nalgebra::{DMatrix, DVector};
 
@@ -87,6 +92,9 @@ pub fn minimize_normal(
     let mut damping: Option<f64> = None;
     let mut growth = 2.0;
     let mut jacobians = 0usize;
+    // The cost at each Jacobian: a stall ends the search as it ends
+    // [`super::minimize`]'s ([`super::STALL_JACOBIANS`]).
+    let mut history = Vec::new();
     let mut trial = vec![0.0; n];
     let mut r_trial = vec![0.0; problem.m];
     loop {
@@ -96,6 +104,17 @@ pub fn minimize_normal(
         if limits.iterations.is_some_and(|k| jacobians >= k) {
             return done(theta, cost, TerminationReason::LostPatience);
         }
+        if stalled(&history, cost) {
+            return done(
+                theta,
+                cost,
+                TerminationReason::Converged {
+                    ftol: true,
+                    xtol: false,
+                },
+            );
+        }
+        history.push(cost);
         jacobians += 1;
         let (jac, held) = jacobian(problem, &theta);
         if !jac.iter().all(|v| v.is_finite()) {
@@ -302,6 +321,36 @@ mod tests {
             m.theta
         );
         assert!(m.cost < 1e-12, "{}", m.cost);
+    }
+
+    #[test]
+    fn a_search_that_only_creeps_stops_at_a_stall() {
+        // Each evaluation lowers the cost by 2·10⁻⁸ of itself wherever it
+        // is (the creep of a heavily damped search, fit's stroke table on
+        // Festo 40 cm's training part, whose steps lowered the cost by
+        // 10⁻⁸ of itself for 1 211 Jacobians): above `√ε`, so MINPACK's
+        // `ftol` never ends it, and the patience counts only the trial
+        // evaluations. The stall rule ends it after `STALL_JACOBIANS`.
+        let evaluations = std::sync::atomic::AtomicUsize::new(0);
+        let f = |t: &[f64], out: &mut [f64]| {
+            let k = evaluations.fetch_add(1, std::sync::atomic::Ordering::Relaxed) as f64;
+            out[0] = 1e3 * (1.0 - 1e-8 * k);
+            out[1] = 1e-3 * t[0];
+        };
+        let m = minimize_normal(&problem(2, &f), &[1.0], 1000);
+        assert!(
+            matches!(
+                m.termination,
+                TerminationReason::Converged {
+                    ftol: true,
+                    xtol: false
+                }
+            ),
+            "{:?} after {} evaluations",
+            m.termination,
+            m.evaluations
+        );
+        assert!(m.evaluations < 100, "{}", m.evaluations);
     }
 
     #[test]
