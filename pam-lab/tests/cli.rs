@@ -108,6 +108,14 @@ fn fit_reports_the_errors_of_each_part_of_a_joined_record() {
     let mean = |k: usize| parts[k]["pressure_mean_mpa"].as_f64().unwrap();
     assert!(mean(0) > 0.005 && mean(1) < -0.005, "{parts:?}");
     assert!((mean(0) - mean(1) - 0.02).abs() < 0.005, "{parts:?}");
+    // The reference surface beside each part, on the same samples: fitted
+    // to both tests, it sits between them too (and has no loop).
+    for part in parts {
+        let model = part["stats"]["pressure_rms_mpa"].as_f64().unwrap();
+        let reference = part["reference_pressure_rms_mpa"].as_f64().unwrap();
+        assert!(reference >= 0.01 && reference > model, "{parts:?}");
+    }
+    assert!(stdout.contains("reference_p_rms_mpa"), "{stdout}");
 }
 
 #[test]

@@ -217,6 +217,12 @@ fn a_logger_isometric_test_is_imported_fitted_and_validated() {
         .map(|p| p["stats"]["samples"].as_u64().unwrap())
         .sum();
     assert_eq!(in_parts, v["model"]["total"]["samples"].as_u64().unwrap());
+    assert!(
+        parts
+            .iter()
+            .all(|p| p["reference_pressure_rms_mpa"].as_f64().is_some()),
+        "{parts:?}"
+    );
     let fitted_parts = json["fit"]["segments"].as_array().expect("fit.segments");
     assert!(
         fitted_parts.len() >= 2 && fitted_parts.len() <= 9,
@@ -349,6 +355,13 @@ fn a_logger_isometric_test_is_diagnosed_and_validated() {
     let parts = v["segments"].as_array().expect("validation.segments");
     assert!(parts.len() >= 2, "{parts:?}");
     assert!(stdout.contains("per part of the record"), "{stdout}");
+    // The reference surface beside each part.
+    assert!(
+        parts.iter().all(|p| p["reference_pressure_rms_mpa"]
+            .as_f64()
+            .is_some_and(|r| r > 0.0 && r.is_finite())),
+        "{parts:?}"
+    );
     // This muscle's static curve is outside the cubic family: the shape is
     // named.
     assert_eq!(report["named"], "constraint_shape");

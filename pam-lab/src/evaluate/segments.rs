@@ -9,6 +9,7 @@ use pam_core::{Branch, Coeffs};
 use serde::{Deserialize, Serialize};
 
 use super::errors::{Acc, ErrorStats, ModelCache};
+use crate::identify::reference::ReferenceSurface;
 use crate::record::Record;
 
 /// Errors of one part of a record ([`crate::record::Segment`]): a test, a
@@ -24,6 +25,11 @@ pub struct SegmentErrors {
     pub pressure_mean_mpa: f64,
     /// Mean predicted − measured contraction.
     pub contraction_mean: f64,
+    /// The reference surface's pressure RMS on the part's same samples,
+    /// MPa ([`with_reference`]): where the model loses to a smooth static
+    /// surface, part by part; `None` without one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_pressure_rms_mpa: Option<f64>,
 }
 
 /// [`super::errors::error_table`]'s errors per part of `record` (its `# segment` seams),
@@ -68,10 +74,39 @@ pub fn segment_errors_of(
                 stats,
                 pressure_mean_mpa,
                 contraction_mean,
+                reference_pressure_rms_mpa: None,
             });
         }
     }
     out
+}
+
+/// `parts` (of `record`, from [`segment_errors_of`]) with the pressure RMS
+/// of `reference` beside each: on the samples `judged(i)` selects, which
+/// must be those the parts' own residuals came from (a sample the part
+/// left out for a residual that was not finite is still judged here).
+pub fn with_reference(
+    mut parts: Vec<SegmentErrors>,
+    record: &Record,
+    reference: &ReferenceSurface,
+    judged: impl Fn(usize) -> bool,
+) -> Vec<SegmentErrors> {
+    let of_reference = segment_errors_of(record, |i| {
+        let s = record.samples.get(i)?;
+        judged(i).then(|| {
+            (
+                reference.pressure_mpa(s.contraction, s.load_n) - s.pressure_mpa,
+                0.0,
+            )
+        })
+    });
+    for part in &mut parts {
+        part.reference_pressure_rms_mpa = of_reference
+            .iter()
+            .find(|r| r.label == part.label)
+            .map(|r| r.stats.pressure_rms_mpa);
+    }
+    parts
 }
 
 /// The share of the errors' mean square that is each part's mean error
@@ -123,13 +158,19 @@ pub fn segments_to_text(parts: &[SegmentErrors]) -> String {
         .max()
         .unwrap_or(4)
         .max(4);
+    let reference = parts.iter().any(|p| p.reference_pressure_rms_mpa.is_some());
     let mut s = format!(
-        "  {:<width$}  samples  p_mean_mpa  p_rms_mpa  x_mean     x_rms\n",
-        "part"
+        "  {:<width$}  samples  p_mean_mpa  p_rms_mpa  x_mean     x_rms{}\n",
+        "part",
+        if reference {
+            "     reference_p_rms_mpa"
+        } else {
+            ""
+        }
     );
     for p in parts {
         s.push_str(&format!(
-            "  {:<width$}  {:>7}  {:>+10.5}  {:>9.5}  {:>+9.6}  {:>8.6}\n",
+            "  {:<width$}  {:>7}  {:>+10.5}  {:>9.5}  {:>+9.6}  {:>8.6}",
             p.label,
             p.stats.samples,
             p.pressure_mean_mpa,
@@ -137,6 +178,13 @@ pub fn segments_to_text(parts: &[SegmentErrors]) -> String {
             p.contraction_mean,
             p.stats.contraction_rms
         ));
+        if reference {
+            match p.reference_pressure_rms_mpa {
+                Some(r) => s.push_str(&format!("  {r:>22.5}")),
+                None => s.push_str(&format!("  {:>22}", "-")),
+            }
+        }
+        s.push('\n');
     }
     s
 }

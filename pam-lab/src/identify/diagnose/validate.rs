@@ -10,7 +10,7 @@ use super::evaluate::simulate;
 use super::prepare::{denoise_pressure, inverse_tables, record_branches, tracker_config};
 use super::report::{DiagnoseReport, DiagnoseValidation, ValidationErrors};
 use crate::evaluate::errors::rms_where;
-use crate::evaluate::segments::segment_errors_of;
+use crate::evaluate::segments::{segment_errors_of, with_reference};
 use crate::identify::fit::{detect_test, slack_mask, TestKind};
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::split_branches;
@@ -92,6 +92,10 @@ pub fn validate(
             .map(|(rms, _)| rms)
     });
     let (model, segments) = errors(&report.final_params, &report.effects);
+    let segments = match &reference {
+        Some(r) => with_reference(segments, validation, r, include),
+        None => segments,
+    };
     DiagnoseValidation {
         source: validation.source.clone(),
         samples: (0..raw.len()).filter(|&i| include(i)).count(),

@@ -71,7 +71,7 @@ use pam_core::{Branch, Coeffs, LoadFamily, Params};
 use serde::Serialize;
 
 use crate::evaluate::errors::{error_table, load_bin, ErrorTable};
-use crate::evaluate::segments::{segment_errors, SegmentErrors};
+use crate::evaluate::segments::{segment_errors, with_reference, SegmentErrors};
 use crate::identify::lsq;
 use crate::identify::reference::ReferenceSurface;
 use crate::record::split::{split_branches, Split, SplitConfig};
@@ -490,6 +490,10 @@ pub fn fit_with_progress(
         &split.branch,
         |i| !slack[i],
     );
+    let segments = match &reference {
+        Some(r) => with_reference(segments, record, r, labelled),
+        None => segments,
+    };
     Ok(FitReport {
         segments,
         params,

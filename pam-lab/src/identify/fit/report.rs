@@ -181,15 +181,19 @@ pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validat
         |i| !slack[i],
         cfg.load_bin_n,
     );
+    let segments = segment_errors(
+        &report.coeffs,
+        report.constraint_shape.as_ref(),
+        record,
+        &split.branch,
+        |i| !slack[i],
+    );
     Validation {
         source: record.source.clone(),
-        segments: segment_errors(
-            &report.coeffs,
-            report.constraint_shape.as_ref(),
-            record,
-            &split.branch,
-            |i| !slack[i],
-        ),
+        segments: match &report.reference {
+            Some(r) => with_reference(segments, record, r, include),
+            None => segments,
+        },
         model,
         reference_rms_mpa: report
             .reference
