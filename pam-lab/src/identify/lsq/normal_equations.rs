@@ -29,6 +29,14 @@ use super::{jacobian, stalled, Limits, Minimum, Residuals};
 use levenberg_marquardt::TerminationReason;
 use nalgebra::{DMatrix, DVector};
 
+/// Converged as MINPACK's `ftol` judges it: the cost cannot fall by more
+/// than the tolerance (a refused step the model itself predicted within
+/// it), or has stalled.
+const COST_CONVERGED: TerminationReason = TerminationReason::Converged {
+    ftol: true,
+    xtol: false,
+};
+
 /// MINPACK's default `ftol` and `xtol`, `√ε`.
 const TOLERANCE: f64 = 1.490_116_119_384_765_6e-8;
 
@@ -105,14 +113,7 @@ pub fn minimize_normal(
             return done(theta, cost, TerminationReason::LostPatience);
         }
         if stalled(&history, cost) {
-            return done(
-                theta,
-                cost,
-                TerminationReason::Converged {
-                    ftol: true,
-                    xtol: false,
-                },
-            );
+            return done(theta, cost, COST_CONVERGED);
         }
         history.push(cost);
         jacobians += 1;
@@ -178,14 +179,7 @@ pub fn minimize_normal(
                     // model's own prediction is within the tolerance, the
                     // point is converged.
                     if predicted >= 0.0 && predicted / cost <= TOLERANCE {
-                        return done(
-                            theta,
-                            cost,
-                            TerminationReason::Converged {
-                                ftol: true,
-                                xtol: false,
-                            },
-                        );
+                        return done(theta, cost, COST_CONVERGED);
                     }
                     if step_norm <= TOLERANCE * theta_norm {
                         return done(
