@@ -349,6 +349,16 @@ fn isometric_plot(path: &Path, plot: &FitPlot<'_>) -> Result<()> {
     Ok(())
 }
 
+/// The time axis of [`simulate_plot`]: from the first sample drawn to the
+/// last (`runs`, not empty), so that an isometric record's slack samples
+/// before or after its holds, which are not drawn, do not stretch it.
+fn drawn_time_range(sim: &[SimSample], runs: &[Vec<usize>]) -> (f64, f64) {
+    let at = |i: Option<&usize>| i.and_then(|&i| sim.get(i)).map(|s| s.t_s);
+    let t0 = at(runs.first().and_then(|r| r.first())).unwrap_or(0.0);
+    let t1 = at(runs.last().and_then(|r| r.last())).unwrap_or(t0);
+    (t0, t1.max(t0 + 1e-9))
+}
+
 /// `simulate`'s plot: measured and predicted over time, and the error
 /// (model − measured) below. On an isotonic record the contraction the
 /// model reaches from the measured pressure and load; on an isometric one
@@ -401,8 +411,7 @@ pub fn simulate_plot(
     if runs.is_empty() {
         return Err(anyhow!("plot: no sample under load to plot"));
     }
-    let t0 = sim[0].t_s;
-    let t1 = sim[sim.len() - 1].t_s.max(t0 + 1e-9);
+    let (t0, t1) = drawn_time_range(sim, &runs);
     let finite = |v: f64| v.is_finite();
     let (ymin, ymax) = runs
         .iter()
@@ -532,5 +541,36 @@ mod tick_tests {
         let t = tick_format(0.0, 900.0);
         assert_eq!(t(&300.0), "300");
         assert_eq!(t(&0.0), "0");
+    }
+}
+
+#[cfg(test)]
+mod time_axis_tests {
+    use super::drawn_time_range;
+    use crate::evaluate::simulate::SimSample;
+    use pam_core::Branch;
+
+    #[test]
+    fn the_time_axis_spans_the_samples_drawn_not_the_slack_ones_around_them() {
+        let sim: Vec<SimSample> = (0..10)
+            .map(|i| SimSample {
+                t_s: f64::from(i),
+                load_n: 0.0,
+                pressure_mpa: 0.0,
+                measured_contraction: 0.0,
+                predicted_contraction: 0.0,
+                predicted_pressure_mpa: 0.0,
+                branch: Branch::Contraction,
+                active_load_n: 0.0,
+            })
+            .collect();
+        // Samples 0–1 and 8–9 slack (not drawn), two holds between.
+        assert_eq!(
+            drawn_time_range(&sim, &[vec![2, 3, 4], vec![6, 7]]),
+            (2.0, 7.0)
+        );
+        // One sample drawn: a range of its own, not empty.
+        let (t0, t1) = drawn_time_range(&sim, &[vec![5]]);
+        assert!(t0 == 5.0 && t1 > t0, "{t0} {t1}");
     }
 }
