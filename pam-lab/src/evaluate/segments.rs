@@ -85,12 +85,16 @@ pub fn segment_errors_of(
 /// of `reference` beside each: on the samples `judged(i)` selects, which
 /// must be those the parts' own residuals came from (a sample the part
 /// left out for a residual that was not finite is still judged here).
+/// `parts` as they are without a reference.
 pub fn with_reference(
     mut parts: Vec<SegmentErrors>,
     record: &Record,
-    reference: &ReferenceSurface,
+    reference: Option<&ReferenceSurface>,
     judged: impl Fn(usize) -> bool,
 ) -> Vec<SegmentErrors> {
+    let Some(reference) = reference else {
+        return parts;
+    };
     let of_reference = segment_errors_of(record, |i| {
         let s = record.samples.get(i)?;
         judged(i).then(|| {

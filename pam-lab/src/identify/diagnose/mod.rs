@@ -143,9 +143,10 @@ pub fn diagnose_with_progress(
                 let model = static_model_as_fit_writes(record, &cfg.fit);
                 progress(&format!(
                     "the static model pam-lab fit writes for the whole record: {}",
-                    match &model {
-                        Some(_) => "fitted",
-                        None => "none (fit refuses it or keeps no table)",
+                    if model.is_some() {
+                        "fitted"
+                    } else {
+                        NO_STATIC_MODEL
                     }
                 ));
                 model
@@ -711,9 +712,12 @@ type StaticModel = (
 fn static_fitted<T>(what: &str, model: &Option<(pam_core::Params, T, f64)>) -> String {
     match model {
         Some((_, _, rms)) => format!("{what}: fitted, training RMS {rms:.5} MPa"),
-        None => format!("{what}: none (fit refuses it or keeps no table)"),
+        None => format!("{what}: {NO_STATIC_MODEL}"),
     }
 }
+
+/// How a progress line says that a static fit gave no model.
+const NO_STATIC_MODEL: &str = "none (fit refuses it or keeps no table)";
 
 /// fit's static model (the paper's model and the stroke table) on
 /// `record` with `fit_cfg`'s options, its hold-out included, as `pam-lab

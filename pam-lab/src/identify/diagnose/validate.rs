@@ -37,15 +37,10 @@ pub fn validate(
     );
     let noise = crate::evaluate::errors::noise_floor(raw);
     let tables = inverse_tables(test == TestKind::Isometric);
-    // A model's errors, and its errors per part of the record.
-    let errors = |params: &Params, effects: &Effects| {
-        let nan = ValidationErrors {
-            pressure_rms_mpa: f64::NAN,
-            contraction_rms: f64::NAN,
-        };
-        let Ok(coeffs) = Coeffs::new(*params) else {
-            return (nan, Vec::new());
-        };
+    // A model's residuals, predicted − measured, in pressure and in
+    // contraction per sample; `None` for parameters pam-core refuses.
+    let residuals = |params: &Params, effects: &Effects| {
+        let coeffs = Coeffs::new(*params).ok()?;
         // Up to the model's `Pmax`, where its stroke ends: a contraction
         // beyond what the model reaches is predicted at `Pmax`, as the
         // static inverse clamps it to the stroke.
@@ -70,12 +65,17 @@ pub fn validate(
         let p_res: Vec<f64> = p.iter().zip(raw).map(|(p, s)| p - s.pressure_mpa).collect();
         let x = simulate(&coeffs, *effects, tracker, &samples, &branches, tables);
         let x_res: Vec<f64> = x.iter().zip(raw).map(|(x, s)| x - s.contraction).collect();
-        let parts = segment_errors_of(validation, |i| include(i).then(|| (p_res[i], x_res[i])));
-        let errors = ValidationErrors {
-            pressure_rms_mpa: rms_where(&p_res, include).0,
-            contraction_rms: rms_where(&x_res, include).0,
-        };
-        (errors, parts)
+        Some((p_res, x_res))
+    };
+    let errors = |res: &Option<(Vec<f64>, Vec<f64>)>| match res {
+        Some((p_res, x_res)) => ValidationErrors {
+            pressure_rms_mpa: rms_where(p_res, include).0,
+            contraction_rms: rms_where(x_res, include).0,
+        },
+        None => ValidationErrors {
+            pressure_rms_mpa: f64::NAN,
+            contraction_rms: f64::NAN,
+        },
     };
     let own = &record.samples;
     let own_test = detect_test(own);
@@ -91,17 +91,20 @@ pub fn validate(
             .rms_mpa(&delayed(raw), include)
             .map(|(rms, _)| rms)
     });
-    let (model, segments) = errors(&report.final_params, &report.effects);
-    let segments = match &reference {
-        Some(r) => with_reference(segments, validation, r, include),
-        None => segments,
+    // The diagnosed model's errors, and its errors per part of the record.
+    let final_res = residuals(&report.final_params, &report.effects);
+    let segments = match &final_res {
+        Some((p_res, x_res)) => {
+            segment_errors_of(validation, |i| include(i).then(|| (p_res[i], x_res[i])))
+        }
+        None => Vec::new(),
     };
     DiagnoseValidation {
         source: validation.source.clone(),
         samples: (0..raw.len()).filter(|&i| include(i)).count(),
-        base: errors(&report.base_params, &report.base_effects).0,
-        model,
-        segments,
+        base: errors(&residuals(&report.base_params, &report.base_effects)),
+        model: errors(&final_res),
+        segments: with_reference(segments, validation, reference.as_ref(), include),
         reference_rms_mpa: reference
             .and_then(|r| r.rms_mpa(raw, include))
             .map(|(rms, _)| rms),

@@ -490,10 +490,7 @@ pub fn fit_with_progress(
         &split.branch,
         |i| !slack[i],
     );
-    let segments = match &reference {
-        Some(r) => with_reference(segments, record, r, labelled),
-        None => segments,
-    };
+    let segments = with_reference(segments, record, reference.as_ref(), labelled);
     Ok(FitReport {
         segments,
         params,

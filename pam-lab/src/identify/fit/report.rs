@@ -190,10 +190,7 @@ pub fn validate(report: &FitReport, record: &Record, cfg: &FitConfig) -> Validat
     );
     Validation {
         source: record.source.clone(),
-        segments: match &report.reference {
-            Some(r) => with_reference(segments, record, r, include),
-            None => segments,
-        },
+        segments: with_reference(segments, record, report.reference.as_ref(), include),
         model,
         reference_rms_mpa: report
             .reference
