@@ -1,8 +1,8 @@
-//! The candidate effects: their parameter maps, the fit of one candidate's
-//! parameters on the current base, and the evidence rule.
+//! The candidate effects: their parameter maps (in the coordinates of
+//! `coordinates.rs`), the fit of one candidate's parameters on the
+//! current base, and the evidence rule.
 
 use crate::identify::lsq;
-use pam_core::effects::memory::MIN_MERGE_SPAN;
 use pam_core::effects::rate::{MAX_RATE_MPA_PER_S, RATE_EXPONENT_RANGE};
 use pam_core::effects::shape::MAX_SHAPE_SLOPE;
 use pam_core::effects::{
@@ -12,7 +12,12 @@ use pam_core::effects::{
 use pam_core::{Coeffs, Effects, Params};
 use serde::Serialize;
 
+use super::backfit;
 use super::config::DiagnoseConfig;
+use super::coordinates::{
+    logit, rate_filter_theta, rate_filter_time, rate_saturation, sigmoid, MEMORY_SHAPE, MERGE_SPAN,
+    PRESSURE_DELAY_TIME, PRESSURE_LAG_TIME,
+};
 use super::evaluate::{ModelErrors, Setup, Variant};
 use super::refit::refit_base;
 
@@ -116,6 +121,18 @@ impl EffectKind {
             // is the pressure's rate times the delay.
             EffectKind::PressureDelay => "pressure_moving",
         }
+    }
+
+    /// Whether the effect has a state the static curve does not have
+    /// (memory, rate, creep, width).
+    pub(super) fn is_dynamic(self) -> bool {
+        matches!(
+            self,
+            EffectKind::NonLocalMemory
+                | EffectKind::RateDependence
+                | EffectKind::Creep
+                | EffectKind::LoadDependentWidth
+        )
     }
 
     /// Starting points of the fit, in the unbounded coordinates of
@@ -280,84 +297,6 @@ pub const RATE_EXPONENTS: [f64; 3] = [0.5, 0.75, 1.0];
 /// and no trip.
 pub const RATE_EXPONENT_WITHOUT_REST: f64 = 1.0;
 
-/// The rate filter's time constant from its unbounded coordinate: logistic
-/// over `[0.02, 1]` s.
-fn rate_filter_time(theta: f64) -> f64 {
-    (0.02 + 0.98 * sigmoid(theta)).clamp(0.02, 1.0)
-}
-
-/// The rate law's saturation from its unbounded coordinate: logarithmic
-/// between the record's fastest ramp (below which the data shows the law)
-/// and [`MAX_RATE_MPA_PER_S`] (a step's rate), so the law cannot saturate
-/// inside the measured ramps and cannot grow beyond what a step shows.
-fn rate_saturation(fastest_ramp: f64, theta: f64) -> f64 {
-    let hi = f64::from(MAX_RATE_MPA_PER_S);
-    let lo = fastest_ramp.clamp(0.01, hi);
-    (lo * (hi / lo).powf(sigmoid(theta))).clamp(lo, hi)
-}
-
-fn rate_filter_theta(tau: f64) -> f64 {
-    logit((tau - 0.02) / 0.98)
-}
-
-/// A logarithmic range `[lo, lo·ratio]` (clamped to `[lo, hi]`) mapped from
-/// an unbounded coordinate: `lo·ratio^sigmoid(θ)`.
-#[derive(Clone, Copy)]
-struct LogRange {
-    lo: f64,
-    ratio: f64,
-    hi: f64,
-}
-
-impl LogRange {
-    fn value(self, theta: f64) -> f64 {
-        (self.lo * self.ratio.powf(sigmoid(theta))).clamp(self.lo, self.hi)
-    }
-
-    fn theta(self, value: f64) -> f64 {
-        logit((value / self.lo).ln() / self.ratio.ln())
-    }
-}
-
-/// The memory's `k`: logarithmic over `[0.05, 50]` (the blend is symmetric
-/// in `ln k`).
-const MEMORY_SHAPE: LogRange = LogRange {
-    lo: 0.05,
-    ratio: 1000.0,
-    hi: 50.0,
-};
-
-/// The pressure lag's time constant, s: logarithmic over pam-core's
-/// range, `[0.001, 0.5]`.
-const PRESSURE_LAG_TIME: LogRange = LogRange {
-    lo: PressureLag::MIN_TIME_CONSTANT_S as f64,
-    ratio: (PressureLag::MAX_TIME_CONSTANT_S / PressureLag::MIN_TIME_CONSTANT_S) as f64,
-    hi: PressureLag::MAX_TIME_CONSTANT_S as f64,
-};
-
-/// The pressure delay, s: logarithmic over pam-core's range,
-/// `[0.0005, 0.1]`.
-const PRESSURE_DELAY_TIME: LogRange = LogRange {
-    lo: PressureDelay::MIN_DELAY_S as f64,
-    ratio: (PressureDelay::MAX_DELAY_S / PressureDelay::MIN_DELAY_S) as f64,
-    hi: PressureDelay::MAX_DELAY_S as f64,
-};
-
-/// The memory's merge span: logarithmic over `[MIN_MERGE_SPAN, 1]`.
-const MERGE_SPAN: LogRange = LogRange {
-    lo: MIN_MERGE_SPAN as f64,
-    ratio: 1.0 / (MIN_MERGE_SPAN as f64),
-    hi: 1.0,
-};
-
-fn sigmoid(x: f64) -> f64 {
-    1.0 / (1.0 + (-x).exp())
-}
-
-fn logit(p: f64) -> f64 {
-    (p / (1.0 - p)).ln()
-}
-
 /// Fitting one candidate's parameters: residuals on the training samples.
 struct CandidateProblem<'s, 'a> {
     setup: &'s Setup<'a>,
@@ -404,7 +343,9 @@ pub struct CandidateResult {
     pub verdict: String,
     /// The static shape's two variants, when it had both (with fit's
     /// stroke table and without: the one that earns its place with the
-    /// lower held-out RMS is the candidate).
+    /// lower held-out RMS is the candidate); for a dynamic effect on fit's
+    /// stroke table, its held-out RMS before and after the static model
+    /// was refitted under it (`backfit.rs`), when that lowered it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub variants: Option<String>,
     /// Held-out RMS in the effect's own regime, before and after.
@@ -605,7 +546,22 @@ pub(super) fn evaluate_candidate(
             n_params - current_params,
         )
     };
-    let plain = fit_variant(model, current, current_params + kind.parameter_count());
+    let n_params = current_params + kind.parameter_count();
+    let fitted = fit_variant(model, current, n_params);
+    // A dynamic effect on fit's stroke table, with the static model
+    // refitted under it too (`backfit.rs`), where that lowers the error.
+    let refit_effect = |on: Effects, coeffs: Coeffs| {
+        let starts = kind.starts(
+            setup.regimes.max_ramp_rate_mpa_per_s,
+            setup.rest_in_training,
+        );
+        let theta = fit_effect_on(setup, kind, on, coeffs, starts, cfg);
+        (!theta.is_empty()).then(|| kind.apply(on, &theta))
+    };
+    let (plain, backfit_note) = match kind.is_dynamic() {
+        true => backfit::kept(setup, fitted, n_params, current_errors, refit_effect),
+        false => (fitted, None),
+    };
     // The static shape's second variant: fit's static model on the
     // training part as fit made it, its stroke table fitted with the
     // paper's parameters under it, against the pressure. Refitting the base
@@ -635,7 +591,11 @@ pub(super) fn evaluate_candidate(
     let judged =
         |v: Variant, table: bool| judge(setup, kind, v, current_errors, current_params, cfg, table);
     match with_table {
-        None => judged(plain, false),
+        None => {
+            let mut c = judged(plain, false);
+            c.variants = backfit_note;
+            c
+        }
         Some(table) => {
             // The static shape's two variants: where both earn their
             // place, fit's static model (what `fit` writes) unless the

@@ -143,7 +143,20 @@ pub(super) struct Setup<'a> {
     /// candidate, on an isometric record where fit keeps a static shape
     /// and the record shows a delay.
     pub(super) delayed_static: Option<DelayedStatic>,
+    /// fit's static model refitted on the training part with the measured
+    /// contraction moved (`backfit.rs`): on an isotonic record, in the
+    /// diagnosis's own setup (not the base refit's).
+    pub(super) refit_static: Option<Arc<RefitStatic<'a>>>,
 }
+
+/// fit's static model (the paper's parameters and the static shape)
+/// refitted on the training part with each sample's measured contraction
+/// moved by a correction (one per sample of the record; a `NaN` leaves
+/// the sample as measured). `None` where fit keeps no static shape there.
+pub(super) type RefitStatic<'a> = dyn Fn(&[f64]) -> Option<(pam_core::Params, pam_core::effects::ConstraintShape)>
+    + Send
+    + Sync
+    + 'a;
 
 /// The `pressure_delay` candidate's static model ([`Setup::delayed_static`]).
 #[derive(Clone, Copy, Debug)]

@@ -59,8 +59,10 @@
 //!    on the memory + rate pair the order decides whether 46 % or 66 % of
 //!    the error above the noise is removed.
 
+mod backfit;
 mod candidates;
 mod config;
+mod coordinates;
 mod delay;
 mod evaluate;
 pub mod lag;
@@ -417,7 +419,16 @@ fn diagnose_beside(
     });
     let rest_in_training =
         warnings::training_hold_s(&paced, samples, &heldout) >= MIN_TRAINING_HOLD_S;
+    // Backfitting (`backfit.rs`): isotonic records only.
+    let refit_static = (!isometric).then(|| {
+        backfit::refit_static_on(
+            record,
+            (0..samples.len()).map(|i| keep(&i)).collect(),
+            table_cfg.clone(),
+        )
+    });
     let mut setup = Setup {
+        refit_static,
         samples,
         coeffs,
         tracker,
@@ -502,7 +513,7 @@ fn diagnose_beside(
         );
         let note = format!(
             "the path's effects on fit's static model as fit made it: held-out {:.5}; \
-             with the base refitted along the path: {:.5}; {}",
+             with the path's refits (the base, or fit's static model refitted under the effects): {:.5}; {}",
             k.errors.rms_heldout,
             chosen.errors.rms_heldout,
             if stays {

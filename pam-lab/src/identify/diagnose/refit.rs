@@ -236,6 +236,7 @@ mod tests {
             corr_len: 1.0,
             noise_residual: 0.0,
             pressure_curves: None,
+            refit_static: None,
             pmax_floor_mpa,
             stroke_bin: super::super::evaluate::stroke_bins(samples),
             base_effects: Effects::NONE,

@@ -35,15 +35,6 @@ pub(super) struct Kept {
     pub errors: ModelErrors,
 }
 
-/// The effects a path adds on top of the static model, which are fitted
-/// again on fit's static model held.
-const DYNAMIC: [EffectKind; 4] = [
-    EffectKind::NonLocalMemory,
-    EffectKind::RateDependence,
-    EffectKind::Creep,
-    EffectKind::LoadDependentWidth,
-];
-
 /// `path`'s dynamic effects fitted, one after the other in the path's
 /// order and then once more each with the others on, on fit's static
 /// model of the training part (`Setup::stroke_table`) with the path's
@@ -65,7 +56,11 @@ pub(super) fn on_fits_static_model(
     let kinds: Vec<EffectKind> = path
         .added
         .iter()
-        .filter_map(|name| DYNAMIC.into_iter().find(|k| k.name() == *name))
+        .filter_map(|name| {
+            EffectKind::ALL
+                .into_iter()
+                .find(|k| k.is_dynamic() && k.name() == *name)
+        })
         .collect();
     if kinds.is_empty() {
         return None;
