@@ -160,19 +160,12 @@ fn a_corrupt_blob_from_the_pipeline_is_refused_at_boot_with_its_reason() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn creep_rig_with_held_steps_is_named_creep_and_memory() {
-    let rig = rig_named("creep");
-    for seed in [1, 2] {
-        let record = characterise_with(&rig, seed, &IsotonicProtocol::WITH_STEPS);
-        assert_eq!(record.len(), 12_156);
-        let id = identify(&record).expect("fit and diagnose accept the record");
-        for effect in ["creep", "non_local_memory"] {
-            assert!(
-                id.effects_added.contains(&effect),
-                "seed {seed}: diagnose added {:?}",
-                id.effects_added
-            );
-        }
-    }
+    assert_named(
+        "creep",
+        &IsotonicProtocol::WITH_STEPS,
+        12_156,
+        &["creep", "non_local_memory"],
+    );
 }
 
 /// The memory rig (the reference muscle: slip elements breaking away at
@@ -187,13 +180,25 @@ fn creep_rig_with_held_steps_is_named_creep_and_memory() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn memory_rig_is_named_memory_with_the_static_model_refitted_under_it() {
-    let rig = rig_named("memory");
+    assert_named(
+        "memory",
+        &IsotonicProtocol::WITH_FAST_CYCLE,
+        10_356,
+        &["constraint_shape", "non_local_memory"],
+    );
+}
+
+/// The rig `rig`, characterised with `protocol` (`samples` long) at seeds
+/// 1 and 2, is named with each of `effects` by diagnose.
+fn assert_named(rig: &str, protocol: &IsotonicProtocol, samples: usize, effects: &[&str]) {
+    let rig = rig_named(rig);
     for seed in [1, 2] {
-        let record = characterise(&rig, seed);
+        let record = characterise_with(&rig, seed, protocol);
+        assert_eq!(record.len(), samples);
         let id = identify(&record).expect("fit and diagnose accept the record");
-        for effect in ["constraint_shape", "non_local_memory"] {
+        for effect in effects {
             assert!(
-                id.effects_added.contains(&effect),
+                id.effects_added.contains(effect),
                 "seed {seed}: diagnose added {:?}",
                 id.effects_added
             );
