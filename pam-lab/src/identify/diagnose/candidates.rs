@@ -558,9 +558,10 @@ pub(super) fn evaluate_candidate(
         let theta = fit_effect_on(setup, kind, on, coeffs, starts, cfg);
         (!theta.is_empty()).then(|| kind.apply(on, &theta))
     };
-    let (plain, backfit_note) = match kind.is_dynamic() {
-        true => backfit::kept(setup, fitted, n_params, current_errors, refit_effect),
-        false => (fitted, None),
+    let (plain, backfit_note) = if kind.is_dynamic() {
+        backfit::kept(setup, fitted, n_params, current_errors, refit_effect)
+    } else {
+        (fitted, None)
     };
     // The static shape's second variant: fit's static model on the
     // training part as fit made it, its stroke table fitted with the
