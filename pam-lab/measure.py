@@ -41,12 +41,27 @@ def fit_row(d):
     return total, ratio
 
 
+def closed_loop_cell(r):
+    """The closed-loop check's verdict and the diagnosed controller's RMS over
+    the loads against fit's, on a muscle that is the diagnosed model."""
+    c = r.get("closed_loop")
+    if not c:
+        return "-"
+    runs = c["runs"]
+    word = "accepted" if c["accepted"] else "fit's written"
+    if not runs:
+        return "not judged" if c["accepted"] else word
+    rms = lambda who: (sum(x[who]["rms_error"] ** 2 for x in runs) / len(runs)) ** 0.5
+    fault = any(x["diagnosed"].get("first_fault") and not x["fit"].get("first_fault") for x in runs)
+    return f"{word} ({rms('diagnosed') / rms('fit'):.2f}{', safe state' if fault else ''})"
+
+
 def diag_cells(d):
     r = load(os.path.join(d, "report.json"))
     return r, (
         f"{names(r['effects_added'])} | {r['rms_before']:.5f} → {r['rms_after']:.5f} | "
         f"{r['residual_noise']:.5f} | {r['above_noise_before']:.5f} → "
-        f"{r['above_noise_after']:.5f} ({100 * r['above_noise_removed']:.0f} %)"
+        f"{r['above_noise_after']:.5f} ({100 * r['above_noise_removed']:.0f} %) | {closed_loop_cell(r)}"
     )
 
 
@@ -56,8 +71,8 @@ def records_table(sub, title, blurb, command):
         return None
     stems = sorted(n[len("diag_"):] for n in os.listdir(d) if n.startswith("diag_") and not n.endswith((".log", ".time")))
     out = [f"## {title}", "", blurb, "", f"`{command}` ({stamp}).", ""]
-    out.append("| record | fit: held-out contraction RMS | fit: held-out pressure RMS (MPa) | fit / reference surface (pressure) | fit (s) | diagnose named | diagnose: held-out RMS before → after | noise | above the noise before → after (removed) | diagnose (s) |")
-    out.append("|---|---|---|---|---|---|---|---|---|---|")
+    out.append("| record | fit: held-out contraction RMS | fit: held-out pressure RMS (MPa) | fit / reference surface (pressure) | fit (s) | diagnose named | diagnose: held-out RMS before → after | noise | above the noise before → after (removed) | closed loop (diagnosed / fit) | diagnose (s) |")
+    out.append("|---|---|---|---|---|---|---|---|---|---|---|")
     for s in stems:
         total, ratio = fit_row(os.path.join(d, "fit_" + s))
         _, cells = diag_cells(os.path.join(d, "diag_" + s))
@@ -69,7 +84,10 @@ def records_table(sub, title, blurb, command):
     out.append(
         "fit's columns are its own held-out cycles (`every:4`); diagnose's are its held-out "
         "segments (an isometric record's residual is in pressure, MPa, an isotonic one's in "
-        "contraction), \"noise\" the record's own noise in the same quantity."
+        "contraction), \"noise\" the record's own noise in the same quantity. \"closed loop\" is "
+        "diagnose's closed-loop check (pam-lab/DIAGNOSE.md step 9): whether the diagnosed model is "
+        "written, and its controller's RMS error over the loads against fit's on a muscle that is "
+        "that model."
     )
     return "\n".join(out)
 
@@ -156,8 +174,8 @@ def hidden_tables():
     ]
     for proto in ("a", "b", "top"):
         out += ["", titles[proto] + ":", ""]
-        out.append("| plant (expected) | seed | named | held-out RMS before → after | noise | above the noise before → after (removed) | extrapolated | diagnose (s) |")
-        out.append("|---|---|---|---|---|---|---|---|")
+        out.append("| plant (expected) | seed | named | held-out RMS before → after | noise | above the noise before → after (removed) | closed loop (diagnosed / fit) | extrapolated | diagnose (s) |")
+        out.append("|---|---|---|---|---|---|---|---|---|")
         out += [row for _, _, row in sorted(groups[proto])]
     return "\n".join(out)
 

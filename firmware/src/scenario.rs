@@ -196,7 +196,7 @@ pub fn run_with_plant_effects(
 pub fn run_on(
     blob: &[u8],
     feedforward: Feedforward,
-    mut plant: MusclePlant,
+    plant: MusclePlant,
     mut on_event: impl FnMut(u32, &Step),
 ) -> Result<Report, ConfigError> {
     let mut config = ControllerConfig::DEFAULT;
@@ -211,6 +211,135 @@ pub fn run_on(
     }
     let dt_s = config.dt_s;
     let mut ctl = Controller::from_blob(blob, config, LOAD_N)?;
+    // Rounded: 12 s / 1 ms is 11999.999… in f32.
+    let steps = (CYCLES as f32 * PERIOD_S / dt_s + 0.5) as u32;
+    let fault_from = (FAULT_AT_S / dt_s + 0.5) as u32;
+    let fault_to = fault_from + FAULT_SAMPLES;
+    let eval_from = (EVAL_FROM_S / dt_s + 0.5) as u32;
+    let mut report = Report {
+        steps,
+        max_error: 0.0,
+        rms_error: 0.0,
+        fault_caught: false,
+        recovery_steps: None,
+        other_faults: 0,
+        stroke_scale: 1.0,
+    };
+    let injected = |k: u32| {
+        (k >= fault_from && k < fault_to).then_some((SensorId::Pressure, SensorErrorKind::Timeout))
+    };
+    let (rms_error, max_error) = drive(
+        &mut ctl,
+        plant,
+        LOAD_N,
+        (steps, eval_from),
+        |k| triangle(k as f32 * dt_s),
+        injected,
+        |k, step, duties| {
+            if step.new_fault.is_some() || step.recovered {
+                on_event(k, step);
+            }
+            if let Some(f) = step.new_fault {
+                if k == fault_from {
+                    report.fault_caught = duties == (0, PWM_MAX_DUTY)
+                        && f == crate::controller::Fault::Read {
+                            sensor: SensorId::Pressure,
+                            kind: SensorErrorKind::Timeout,
+                        };
+                } else {
+                    report.other_faults += 1;
+                }
+            }
+            if step.recovered && k >= fault_to && report.recovery_steps.is_none() {
+                report.recovery_steps = Some(k - fault_to + 1);
+            }
+        },
+    )?;
+    report.rms_error = rms_error;
+    report.max_error = max_error;
+    report.stroke_scale = ctl.adaptation().map_or(1.0, |a| a.scale());
+    Ok(report)
+}
+
+/// What [`track_on`] measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Tracking {
+    /// RMS of `|desired − actual|` (the plant's true contraction) from the
+    /// evaluation's first step on.
+    pub rms_error: f32,
+    /// Largest `|desired − actual|` over the same steps.
+    pub max_error: f32,
+    /// Faults the controller reported (each puts the valves safe).
+    pub faults: u32,
+    /// The first of them and the step that reported it.
+    pub first_fault: Option<(u32, crate::controller::Fault)>,
+}
+
+/// The controller booted from `blob` (with [`ControllerConfig::DEFAULT`]
+/// and the feedforward the blob's model asks for, as the image boots it)
+/// drives `plant` at `load_n` along `desired(t_s)` for `steps` periods,
+/// with the self-test's sensor noise ([`NOISE`]) and no injected fault;
+/// the error is judged from step `eval_from` on. The closed loop a host
+/// tool runs on a model before it is flashed (`pam-lab diagnose`).
+pub fn track_on(
+    blob: &[u8],
+    plant: MusclePlant,
+    load_n: f32,
+    desired: impl Fn(f32) -> f32,
+    steps: u32,
+    eval_from: u32,
+) -> Result<Tracking, ConfigError> {
+    let config = ControllerConfig {
+        feedforward: Feedforward::Hysteresis,
+        ..ControllerConfig::DEFAULT
+    };
+    let dt_s = config.dt_s;
+    let mut ctl = Controller::from_blob(blob, config, load_n)?;
+    let mut faults = 0;
+    let mut first_fault = None;
+    let (rms_error, max_error) = drive(
+        &mut ctl,
+        plant,
+        load_n,
+        (steps, eval_from),
+        |k| desired(k as f32 * dt_s),
+        |_| None,
+        |k, step, _| {
+            if let Some(f) = step.new_fault {
+                faults += 1;
+                if first_fault.is_none() {
+                    first_fault = Some((k, f));
+                }
+            }
+        },
+    )?;
+    Ok(Tracking {
+        rms_error,
+        max_error,
+        faults,
+        first_fault,
+    })
+}
+
+/// The simulated rig of the scenarios: `ctl` drives `plant` at `load_n`
+/// through the simulated sensors and valve pair, one control period a
+/// step, for `steps` steps (`(steps, eval_from)`). `desired(k)` is step
+/// `k`'s set-point, `failing(k)` the sensor fault injected on it, and
+/// `after_step(k, step, duties)` sees each step's outcome and the valves'
+/// raw duties before the plant moves. Returns the RMS and the largest
+/// `|desired − actual|` (the plant's true contraction, not the noisy
+/// sensor) from step `eval_from` on (infinite once it is NaN).
+fn drive(
+    ctl: &mut Controller,
+    mut plant: MusclePlant,
+    load_n: f32,
+    (steps, eval_from): (u32, u32),
+    desired: impl Fn(u32) -> f32,
+    failing: impl Fn(u32) -> Option<(SensorId, SensorErrorKind)>,
+    mut after_step: impl FnMut(u32, &Step, (u16, u16)),
+) -> Result<(f32, f32), ConfigError> {
+    let dt_s = ctl.config().dt_s;
     let bus = SimBus::new();
     let calibration = PressureCalibration::ADC12_0_1MPA;
     let valve = ValvePair::new(
@@ -228,67 +357,30 @@ pub fn run_on(
         valve,
     };
     let mut noise = Noise::new(0x5EED);
-
-    // Rounded: 12 s / 1 ms is 11999.999… in f32.
-    let steps = (CYCLES as f32 * PERIOD_S / dt_s + 0.5) as u32;
-    let fault_from = (FAULT_AT_S / dt_s + 0.5) as u32;
-    let fault_to = fault_from + FAULT_SAMPLES;
-    let eval_from = (EVAL_FROM_S / dt_s + 0.5) as u32;
-    let mut report = Report {
-        steps,
-        max_error: 0.0,
-        rms_error: 0.0,
-        fault_caught: false,
-        recovery_steps: None,
-        other_faults: 0,
-        stroke_scale: 1.0,
-    };
-    let mut sum_sq = 0.0f64;
-    let mut evaluated = 0u32;
+    let (mut sum_sq, mut max_error, mut evaluated) = (0.0f64, 0.0f32, 0u32);
     for k in 0..steps {
-        let desired = triangle(k as f32 * dt_s);
-        bus.publish(&plant, LOAD_N, &calibration, &mut noise, NOISE);
-        let injected = k >= fault_from && k < fault_to;
-        bus.failing.set(if injected {
-            Some((SensorId::Pressure, SensorErrorKind::Timeout))
-        } else {
-            None
-        });
-        let step = pam_control_step(&mut ctl, &mut io, desired);
-        if step.new_fault.is_some() || step.recovered {
-            on_event(k, &step);
-        }
-        if let Some(f) = step.new_fault {
-            if k == fault_from {
-                let exhaust = (bus.inlet_duty.get(), bus.exhaust_duty.get()) == (0, PWM_MAX_DUTY);
-                report.fault_caught = exhaust
-                    && f == crate::controller::Fault::Read {
-                        sensor: SensorId::Pressure,
-                        kind: SensorErrorKind::Timeout,
-                    };
-            } else {
-                report.other_faults += 1;
-            }
-        }
-        if step.recovered && k >= fault_to && report.recovery_steps.is_none() {
-            report.recovery_steps = Some(k - fault_to + 1);
-        }
+        let x_ref = desired(k);
+        bus.publish(&plant, load_n, &calibration, &mut noise, NOISE);
+        bus.failing.set(failing(k));
+        let step = pam_control_step(ctl, &mut io, x_ref);
+        after_step(k, &step, (bus.inlet_duty.get(), bus.exhaust_duty.get()));
         let (inlet, exhaust) = bus.duties();
         plant.step(inlet, exhaust, dt_s);
         if k >= eval_from {
-            let e = (desired - plant.contraction()).abs();
-            if e > report.max_error || e.is_nan() {
-                report.max_error = if e.is_nan() { f32::INFINITY } else { e };
+            let e = (x_ref - plant.contraction()).abs();
+            if e > max_error || e.is_nan() {
+                max_error = if e.is_nan() { f32::INFINITY } else { e };
             }
             sum_sq += f64::from(e) * f64::from(e);
             evaluated += 1;
         }
     }
-    if evaluated > 0 {
-        report.rms_error = libm_sqrt(sum_sq / f64::from(evaluated)) as f32;
-    }
-    report.stroke_scale = ctl.adaptation().map_or(1.0, |a| a.scale());
-    Ok(report)
+    let rms_error = if evaluated > 0 {
+        libm_sqrt(sum_sq / f64::from(evaluated)) as f32
+    } else {
+        0.0
+    };
+    Ok((rms_error, max_error))
 }
 
 /// Square root by Newton's method (the library has no `std`, and this runs
@@ -351,6 +443,34 @@ mod tests {
             "{with:?} {constraint:?}"
         );
         assert!(with.rms_error < off.rms_error, "{with:?} {off:?}");
+    }
+
+    /// `track_on`, the closed loop a host tool runs on a model: the
+    /// controller of the plant's own model tracks it without a fault, its
+    /// RMS within the self-test's bound, and better than the controller of another
+    /// model (the self-test's plant is the default model with a 25 % wider
+    /// loop and a stiffer load dependence).
+    #[test]
+    fn a_models_own_controller_tracks_its_plant_best() {
+        let own = pam_core::blob::encode(&plant_params());
+        let other = blob();
+        let track = |b: &[u8]| {
+            let coeffs = Coeffs::new(plant_params()).unwrap();
+            let plant = MusclePlant::with_effects(
+                coeffs,
+                pam_core::Effects::NONE,
+                LOAD_N,
+                PlantConfig::DEFAULT,
+            )
+            .unwrap();
+            let steps = (CYCLES as f32 * PERIOD_S / ControllerConfig::DEFAULT.dt_s) as u32;
+            track_on(b, plant, LOAD_N, triangle, steps, steps / CYCLES).unwrap()
+        };
+        let (own, other) = (track(&own), track(&other));
+        println!("own {own:?}\nother {other:?}");
+        assert_eq!((own.faults, own.first_fault), (0, None), "{own:?}");
+        assert!(own.rms_error <= MAX_ERROR_BOUND, "{own:?}");
+        assert!(own.rms_error < other.rms_error, "{own:?} vs {other:?}");
     }
 
     #[test]

@@ -47,6 +47,9 @@ pub struct Identified {
     pub paper_blob: Vec<u8>,
     /// `model.blob` of `diagnose`.
     pub diagnosed_blob: Vec<u8>,
+    /// diagnose's closed-loop check of its model (refused: the blob
+    /// written is fit's model).
+    pub closed_loop: Option<pam_lab::identify::diagnose::closed_loop::ClosedLoopCheck>,
 }
 
 impl Identified {
@@ -57,6 +60,12 @@ impl Identified {
         } else {
             self.effects_added.join("+")
         }
+    }
+
+    /// Whether diagnose's closed-loop check refused its model (then the
+    /// blob it wrote is fit's model).
+    pub fn refused(&self) -> bool {
+        self.closed_loop.as_ref().is_some_and(|c| !c.accepted)
     }
 }
 
@@ -127,6 +136,7 @@ pub fn identify(record: &Record) -> Result<Identified, String> {
         noise: report.noise.contraction,
         paper_blob,
         diagnosed_blob,
+        closed_loop: report.closed_loop.clone(),
     })
 }
 
@@ -256,7 +266,14 @@ pub fn table(outcomes: &[RigOutcome]) -> String {
         for (i, r) in o.runs.iter().enumerate() {
             let (named, rms) = if i == 0 {
                 (
-                    id.named(),
+                    if id.refused() {
+                        format!(
+                            "{} (closed loop refused it: fit's model written)",
+                            id.named()
+                        )
+                    } else {
+                        id.named()
+                    },
                     format!(
                         "{:.4} -> {:.4} ({:.4})",
                         id.rms_before, id.rms_after, id.noise

@@ -61,6 +61,7 @@
 
 mod backfit;
 mod candidates;
+pub mod closed_loop;
 mod config;
 mod coordinates;
 mod delay;
@@ -130,7 +131,7 @@ pub fn diagnose(record: &Record, cfg: &DiagnoseConfig) -> Result<DiagnoseReport,
 ///
 /// The static model `pam-lab fit` writes for the record (what diagnose
 /// writes under its effects when the path keeps fit's stroke table,
-/// `static_model_as_fit_writes`) depends on the record and the options
+/// `fit_writes`) depends on the record and the options
 /// alone: it is fitted on a thread of its own beside the diagnosis, which
 /// joins it at the end (on the 103 500-row record of `measure.sh --long`
 /// it takes about as long as `pam-lab fit`, 1.8 s).
@@ -140,33 +141,30 @@ pub fn diagnose_with_progress(
     progress: &(dyn Fn(&str) + Sync),
 ) -> Result<DiagnoseReport, DiagnoseError> {
     std::thread::scope(|scope| {
-        let as_fit = cfg.fit.static_shape.then(|| {
-            scope.spawn(|| {
-                let model = static_model_as_fit_writes(record, &cfg.fit);
-                progress(&format!(
-                    "the static model pam-lab fit writes for the whole record: {}",
-                    if model.is_some() {
-                        "fitted"
-                    } else {
-                        NO_STATIC_MODEL
-                    }
-                ));
-                model
-            })
+        let as_fit = scope.spawn(|| {
+            let written = fit_writes(record, &cfg.fit);
+            progress(&format!(
+                "the static model pam-lab fit writes for the whole record: {}",
+                match &written {
+                    Some(w) if w.static_model.is_some() => "fitted",
+                    Some(_) => "fitted, without a stroke table",
+                    None => NO_STATIC_MODEL,
+                }
+            ));
+            written
         });
-        diagnose_beside(record, cfg, progress, move || {
-            as_fit.and_then(parallel::joined)
-        })
+        diagnose_beside(record, cfg, progress, move || parallel::joined(as_fit))
     })
 }
 
-/// [`diagnose_with_progress`] with `as_fit`, which gives the static model
-/// `pam-lab fit` writes for the record when it is the model written.
+/// [`diagnose_with_progress`] with `as_fit`, which gives the model
+/// `pam-lab fit` writes for the record: its static model when that is the
+/// model written, and fit's model for the closed-loop check.
 fn diagnose_beside(
     record: &Record,
     cfg: &DiagnoseConfig,
     progress: &(dyn Fn(&str) + Sync),
-    as_fit: impl FnOnce() -> Option<StaticModel>,
+    as_fit: impl FnOnce() -> Option<FitWrites>,
 ) -> Result<DiagnoseReport, DiagnoseError> {
     let samples = &record.samples;
     if samples.len() < 100 {
@@ -227,7 +225,7 @@ fn diagnose_beside(
     // law fails there), the table variant of the `constraint_shape`
     // candidate, which competes with the others. fit's static model as
     // `pam-lab fit` writes it for the record is written when that variant
-    // is chosen, and fitted then ([`static_model_as_fit_writes`]).
+    // is chosen, and fitted then ([`fit_writes`]).
     let with_table = cfg.fit.static_shape;
     progress(&format!(
         "fitting the paper's model on {} training samples{}",
@@ -583,11 +581,13 @@ fn diagnose_beside(
                     pressure_delay: current.pressure_delay,
                     ..setup.base_effects
                 });
+    let fit_written = as_fit();
     let whole = if table_only {
         progress(
             "the static model fit writes for the record (fitted beside the diagnosis): written",
         );
-        as_fit().map(|(params, coeffs, shape, samples)| {
+        let static_model = fit_written.as_ref().and_then(|w| w.static_model);
+        static_model.map(|(params, coeffs, shape, samples)| {
             let effects = Effects {
                 shape: Some(shape),
                 ..current
@@ -631,6 +631,23 @@ fn diagnose_beside(
     let final_refit = match (final_refit, static_note) {
         (Some(a), Some((_, b))) => Some(format!("{b}; {a}")),
         (a, b) => a.or(b.map(|(_, b)| b)),
+    };
+    // The closed-loop check (`closed_loop.rs`): the firmware's controller
+    // on a muscle that is the model written, against fit's controller.
+    let closed_loop = fit_written.as_ref().map(|w| {
+        progress("closed loop: the firmware's controller on a muscle that is the diagnosed model, beside fit's");
+        closed_loop::check((&model_params, &current), (&w.params, &w.effects))
+    });
+    let (written_params, written_effects, final_refit) = match (&closed_loop, &fit_written) {
+        (Some(c), Some(w)) if !c.accepted => (
+            w.params,
+            w.effects,
+            Some(format!(
+                "the model written is fit's, without the effects named: {}",
+                c.verdict
+            )),
+        ),
+        _ => (model_params, current, final_refit),
     };
 
     let predicted_base = setup.predicted(&refit_base_coeffs, setup.base_effects);
@@ -685,10 +702,11 @@ fn diagnose_beside(
         after: current_errors,
         rms_paper_fit: paper_errors.rms_heldout,
         base_params: refit_base_params,
-        final_params: model_params,
+        final_params: written_params,
         final_refit,
+        closed_loop,
         pressure_lag,
-        effects: current,
+        effects: written_effects,
         base_effects: setup.base_effects,
         validation: None,
         pmax_record_top_mpa: pmax_record_top_mpa.map(f64::from),
@@ -730,16 +748,32 @@ fn static_fitted<T>(what: &str, model: &Option<(pam_core::Params, T, f64)>) -> S
 /// How a progress line says that a static fit gave no model.
 const NO_STATIC_MODEL: &str = "none (fit refuses it or keeps no table)";
 
-/// fit's static model (the paper's model and the stroke table) on
-/// `record` with `fit_cfg`'s options, its hold-out included, as `pam-lab
-/// fit` writes it; `None` when fit refuses it or keeps no table.
-fn static_model_as_fit_writes(record: &Record, fit_cfg: &FitConfig) -> Option<StaticModel> {
-    let mut cfg = fit_cfg.clone();
-    cfg.static_shape = true;
-    let fit = crate::identify::fit::fit(record, &cfg).ok()?;
-    let shape = fit.constraint_shape?;
+/// The model `pam-lab fit` writes for a record.
+struct FitWrites {
+    /// Its parameters.
+    params: pam_core::Params,
+    /// Its effects (the static shape, where fit keeps one).
+    effects: Effects,
+    /// Its static model, where `cfg.fit` fits the static shape and fit
+    /// keeps a stroke table.
+    static_model: Option<StaticModel>,
+}
+
+/// The model `pam-lab fit` writes for `record` with `fit_cfg`'s options,
+/// its hold-out included; `None` when fit refuses the record.
+fn fit_writes(record: &Record, fit_cfg: &FitConfig) -> Option<FitWrites> {
+    let fit = crate::identify::fit::fit(record, fit_cfg).ok()?;
     let samples = fit.training_samples(&record.samples);
-    Some((fit.params, fit.coeffs, shape, samples))
+    let static_model = fit_cfg
+        .static_shape
+        .then_some(fit.constraint_shape)
+        .flatten()
+        .map(|shape| (fit.params, fit.coeffs, shape, samples));
+    Some(FitWrites {
+        params: fit.params,
+        effects: fit.effects(),
+        static_model,
+    })
 }
 
 /// Relative distance below the `Pmax` ceiling ([`PMAX_CEILING_OF_TOP`]

@@ -144,6 +144,10 @@ pub struct DiagnoseReport {
     /// `pam-lab fit` writes it for the record (see `static_kept.rs`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub final_refit: Option<String>,
+    /// The closed-loop check of the model written ([`super::closed_loop`]);
+    /// `None` where fit refuses the record.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub closed_loop: Option<super::closed_loop::ClosedLoopCheck>,
     /// On an isometric record: how much later the final model's pressure
     /// follows the measured pressure best ([`super::lag`]), over every
     /// sample judged.
@@ -338,6 +342,9 @@ pub fn summary(r: &DiagnoseReport) -> String {
         s.push_str(note);
         s.push('\n');
     }
+    if let Some(c) = &r.closed_loop {
+        s.push_str(&closed_loop_lines(c));
+    }
     if let Some(lag) = &r.pressure_lag {
         s.push_str(&lag_line(
             lag,
@@ -391,6 +398,38 @@ pub fn summary(r: &DiagnoseReport) -> String {
     for w in &r.warnings {
         s.push_str(&format!("warning: {w}\n"));
     }
+    s
+}
+
+/// The summary's lines on the closed-loop check: each load's two runs and
+/// the verdict.
+fn closed_loop_lines(c: &super::closed_loop::ClosedLoopCheck) -> String {
+    let run = |t: &super::closed_loop::LoopTracking| match &t.first_fault {
+        Some(f) => format!("{:.5} (safe state: {f})", t.rms_error),
+        None => format!("{:.5}", t.rms_error),
+    };
+    let mut s = String::from(
+        "closed loop: the firmware's controller on a simulated muscle that is the diagnosed model, \
+         a triangle over the middle of its stroke (RMS error after the first cycle)\n",
+    );
+    for r in &c.runs {
+        s.push_str(&format!(
+            "  {:>5.0} N, {:.3}-{:.3}: diagnosed model {}, fit's model {}\n",
+            r.load_n,
+            r.low,
+            r.high,
+            run(&r.diagnosed),
+            run(&r.fit)
+        ));
+    }
+    for why in &c.skipped {
+        s.push_str(&format!("  {why}\n"));
+    }
+    s.push_str(&format!(
+        "  -> {}: {}\n",
+        if c.accepted { "accepted" } else { "refused" },
+        c.verdict
+    ));
     s
 }
 
