@@ -16,13 +16,14 @@
 //!
 //! On a muscle that is its own model, a model's controller is the one with
 //! the exact inverse: where it goes to its safe state, or tracks worse
-//! than fit's, the firmware cannot use that inverse (a rate law fitted to
-//! slow ramps whose loop widens many times over at the pressure rates of a
-//! step; an inverse that oscillates). The diagnosed model is accepted when,
-//! at every load, its controller reports no fault and its RMS error is no
-//! larger than fit's controller's; otherwise the model written is fit's,
-//! and the report says why. The effects named stay named: they describe
-//! the record; the check decides what the firmware gets.
+//! than fit's, the firmware cannot use that inverse (host-sim's rate rig: a
+//! rate law fitted to slow ramps, whose loop widens many times over at the
+//! pressure rate of a step). The diagnosed model is accepted when its
+//! controller goes to its safe state at no load where fit's does not, and
+//! its RMS error over the loads is no larger than fit's controller's;
+//! otherwise the model written is fit's, and the report says why. The
+//! effects named stay named: they describe the record; the check decides
+//! what the firmware gets.
 
 use firmware::plant::{MusclePlant, PlantConfig};
 use pam_core::{Coeffs, Effects, Params};
@@ -117,16 +118,16 @@ pub fn check(diagnosed: (&Params, &Effects), fit: (&Params, &Effects)) -> Closed
 /// than fit's (a run that went to its safe state counts with its error:
 /// how long the valves stayed safe, how the loop came back).
 fn judge(runs: Vec<LoopRun>) -> (Vec<LoopRun>, bool, String) {
-    let faulted = runs
-        .iter()
-        .find_map(|r| match (&r.diagnosed.first_fault, &r.fit.first_fault) {
-            (Some(f), None) => Some(format!(
-            "at {:.0} N the diagnosed model's controller went to its safe state on a muscle that \
-             is that model ({f}), and fit's did not",
-            r.load_n
-        )),
-            _ => None,
-        });
+    let faulted = runs.iter().find_map(|r| {
+        let f = r.diagnosed.first_fault.as_ref()?;
+        r.fit.first_fault.is_none().then(|| {
+            format!(
+                "at {:.0} N the diagnosed model's controller went to its safe state on a muscle \
+                 that is that model ({f}), and fit's did not",
+                r.load_n
+            )
+        })
+    });
     let rms = |f: fn(&LoopRun) -> f64| {
         (runs.iter().map(|r| f(r).powi(2)).sum::<f64>() / runs.len().max(1) as f64).sqrt()
     };
