@@ -42,18 +42,16 @@ def fit_row(d):
 
 
 def closed_loop_cell(r):
-    """The closed-loop check's verdict and the diagnosed controller's RMS over
-    the loads against fit's, on a muscle that is the diagnosed model."""
+    """The closed-loop check's verdict and the geometric mean of the diagnosed
+    controller's RMS error over fit's, on a muscle that is the diagnosed model."""
     c = r.get("closed_loop")
     if not c:
         return "-"
-    runs = c["runs"]
     word = "accepted" if c["accepted"] else "fit's written"
-    if not runs:
+    if not c["runs"]:
         return "not judged" if c["accepted"] else word
-    rms = lambda who: (sum(x[who]["rms_error"] ** 2 for x in runs) / len(runs)) ** 0.5
-    fault = any(x["diagnosed"].get("first_fault") and not x["fit"].get("first_fault") for x in runs)
-    return f"{word} ({rms('diagnosed') / rms('fit'):.2f}{', safe state' if fault else ''})"
+    fault = any(x["diagnosed"].get("first_fault") and not x["fit"].get("first_fault") for x in c["runs"])
+    return f"{word} ({c['diagnosed_over_fit']:.2f}{', safe state' if fault else ''})"
 
 
 def diag_cells(d):
@@ -86,8 +84,8 @@ def records_table(sub, title, blurb, command):
         "segments (an isometric record's residual is in pressure, MPa, an isotonic one's in "
         "contraction), \"noise\" the record's own noise in the same quantity. \"closed loop\" is "
         "diagnose's closed-loop check (pam-lab/DIAGNOSE.md step 9): whether the diagnosed model is "
-        "written, and its controller's RMS error over the loads against fit's on a muscle that is "
-        "that model."
+        "written, and its controller's RMS error over fit's on a muscle that is that model "
+        "(geometric mean over three loads and four set-points)."
     )
     return "\n".join(out)
 

@@ -8,37 +8,95 @@
 //! and sensors with noise) drives a simulated muscle that *is* that model
 //! ([`MusclePlant::with_effects`]: pam-core's `Simulator` with the model's
 //! effects as the equilibrium, the valves' chamber, a 30 ms mechanical lag)
-//! along a triangle over the middle [`SPAN_OF_STROKE`] of the model's
-//! stroke ([`PERIOD_S`], [`CYCLES`] cycles, judged after the first), at the
-//! lowest, middle and highest load of the model's range. The controller
-//! booted from the model `pam-lab fit` writes for the record drives the
-//! same muscle.
+//! over the middle [`SPAN_OF_STROKE`] of the model's stroke, along each
+//! set-point of [`SETPOINTS`] (triangles at three paces, steps held), at
+//! the lowest, middle and highest load of the model's range. The
+//! controller booted from the model `pam-lab fit` writes for the record
+//! drives the same muscle.
 //!
 //! On a muscle that is its own model, a model's controller is the one with
 //! the exact inverse: where it goes to its safe state, or tracks worse
 //! than fit's, the firmware cannot use that inverse (host-sim's rate rig: a
 //! rate law fitted to slow ramps, whose loop widens many times over at the
 //! pressure rate of a step). The diagnosed model is accepted when its
-//! controller goes to its safe state at no load where fit's does not, and
-//! its RMS error over the loads is no larger than fit's controller's;
-//! otherwise the model written is fit's, and the report says why. The
-//! effects named stay named: they describe the record; the check decides
-//! what the firmware gets.
+//! controller goes to its safe state in no run where fit's does not, and
+//! the geometric mean over the runs of its RMS error over fit's is at most
+//! 1; otherwise the model written is fit's, and the report says why. The
+//! mean is over several set-points because one alone decides by its pace:
+//! on a creep plant of the hidden set, the diagnosed controller's RMS was
+//! 1.12–1.19× fit's on 2 s and 4 s triangles and 0.26–0.27× on 8 s ones.
+//! The effects named stay named: they describe the record; the check
+//! decides what the firmware gets.
 
 use firmware::plant::{MusclePlant, PlantConfig};
 use pam_core::{Coeffs, Effects, Params};
 
-/// Share of the stroke the triangle spans, centred.
+/// Share of the stroke the set-points span, centred.
 pub const SPAN_OF_STROKE: f32 = 0.6;
-/// Period of the triangle, s (the paper's Fig. 6 pace, the self-test's).
-pub const PERIOD_S: f32 = 4.0;
-/// Cycles run; the first (start-up from rest) is not judged.
-pub const CYCLES: u32 = 3;
+
+/// A set-point of the check, over the span `[low, high]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Setpoint {
+    /// `low → high → low` with this period, s; three periods run, the
+    /// first (start-up from rest) not judged.
+    Triangle(f32),
+    /// Held steps to `low`, `high`, the middle and a quarter of the span,
+    /// each held this long, s; twice through, the first step not judged.
+    Steps(f32),
+}
+
+/// The set-points every load runs: the paper's Fig. 6 pace (4 s, the
+/// self-test's), half and twice it, and steps held 2 s.
+pub const SETPOINTS: [Setpoint; 4] = [
+    Setpoint::Triangle(2.0),
+    Setpoint::Triangle(4.0),
+    Setpoint::Triangle(8.0),
+    Setpoint::Steps(2.0),
+];
+
+impl Setpoint {
+    /// `(run, not judged)`, s.
+    fn duration_s(self) -> (f32, f32) {
+        match self {
+            Setpoint::Triangle(period_s) => (3.0 * period_s, period_s),
+            Setpoint::Steps(hold_s) => (8.0 * hold_s, hold_s),
+        }
+    }
+
+    /// The set-point at `t_s` over `[low, high]`.
+    fn at(self, t_s: f32, low: f32, high: f32) -> f32 {
+        let up = match self {
+            Setpoint::Triangle(period_s) => {
+                let phase = t_s / period_s;
+                let frac = phase - phase.floor();
+                if frac < 0.5 {
+                    2.0 * frac
+                } else {
+                    2.0 - 2.0 * frac
+                }
+            }
+            Setpoint::Steps(hold_s) => {
+                const LEVELS: [f32; 4] = [0.0, 1.0, 0.5, 0.25];
+                let k = (t_s / hold_s) as usize % LEVELS.len();
+                LEVELS.get(k).copied().unwrap_or(0.0)
+            }
+        };
+        low + (high - low) * up
+    }
+
+    /// `"triangle 4 s"`, `"steps held 2 s"`.
+    fn label(self) -> String {
+        match self {
+            Setpoint::Triangle(period_s) => format!("triangle {period_s} s"),
+            Setpoint::Steps(hold_s) => format!("steps held {hold_s} s"),
+        }
+    }
+}
 
 /// One controller on the plant at one load.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct LoopTracking {
-    /// RMS of `|desired − actual|` after the first cycle, contraction.
+    /// RMS of `|desired − actual|` after the part not judged, contraction.
     pub rms_error: f64,
     /// Largest of the same.
     pub max_error: f64,
@@ -49,12 +107,14 @@ pub struct LoopTracking {
     pub first_fault: Option<String>,
 }
 
-/// Both controllers on the plant at one load.
+/// Both controllers on the plant at one load along one set-point.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct LoopRun {
     /// Load, N.
     pub load_n: f64,
-    /// The triangle's ends, contraction.
+    /// The set-point ([`Setpoint`]).
+    pub setpoint: String,
+    /// The set-point's span, contraction.
     pub low: f64,
     /// See [`LoopRun::low`].
     pub high: f64,
@@ -72,8 +132,11 @@ pub struct ClosedLoopCheck {
     pub params: Params,
     /// Its effects.
     pub effects: Effects,
-    /// One run per load judged.
+    /// One run per load judged and set-point.
     pub runs: Vec<LoopRun>,
+    /// The geometric mean over the runs of the diagnosed controller's RMS
+    /// error over fit's (1 without runs).
+    pub diagnosed_over_fit: f64,
     /// The loads not judged, and why.
     pub skipped: Vec<String>,
     /// Whether the diagnosed model is written.
@@ -105,6 +168,7 @@ pub fn check(diagnosed: (&Params, &Effects), fit: (&Params, &Effects)) -> Closed
     ClosedLoopCheck {
         params: *diagnosed.0,
         effects: *diagnosed.1,
+        diagnosed_over_fit: ratio(&runs),
         runs,
         skipped,
         accepted,
@@ -112,32 +176,63 @@ pub fn check(diagnosed: (&Params, &Effects), fit: (&Params, &Effects)) -> Closed
     }
 }
 
+/// The geometric mean over `runs` of the diagnosed controller's RMS error
+/// over fit's (1 without runs; a run with no error on either side counts
+/// as 1).
+fn ratio(runs: &[LoopRun]) -> f64 {
+    let logs: Vec<f64> = runs
+        .iter()
+        .map(|r| {
+            let (d, f) = (r.diagnosed.rms_error, r.fit.rms_error);
+            if d > 0.0 && f > 0.0 && (d / f).is_finite() {
+                (d / f).ln()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    if logs.is_empty() {
+        1.0
+    } else {
+        (logs.iter().sum::<f64>() / logs.len() as f64).exp()
+    }
+}
+
 /// The verdict on the runs. The diagnosed model makes the controller
-/// worse where, at some load, its controller goes to its safe state and
-/// fit's does not, or where its RMS error over every load's run is larger
-/// than fit's (a run that went to its safe state counts with its error:
-/// how long the valves stayed safe, how the loop came back).
+/// worse where its controller loses the muscle (an error that is not
+/// finite) or goes to its safe state in a run where fit's does not, or
+/// where its RMS error is larger than fit's in the geometric
+/// mean over the runs ([`ratio`]; a run that went to its safe state counts
+/// with its error: how long the valves stayed safe, how the loop came
+/// back).
 fn judge(runs: Vec<LoopRun>) -> (Vec<LoopRun>, bool, String) {
+    let not_finite = runs.iter().find_map(|r| {
+        let lost = !r.diagnosed.rms_error.is_finite() && r.fit.rms_error.is_finite();
+        lost.then(|| {
+            format!(
+                "at {:.0} N, {}, the diagnosed model's controller lost the muscle (its error is \
+                 not finite) and fit's did not",
+                r.load_n, r.setpoint
+            )
+        })
+    });
     let faulted = runs.iter().find_map(|r| {
         let f = r.diagnosed.first_fault.as_ref()?;
         r.fit.first_fault.is_none().then(|| {
             format!(
-                "at {:.0} N the diagnosed model's controller went to its safe state on a muscle \
-                 that is that model ({f}), and fit's did not",
-                r.load_n
+                "at {:.0} N, {}, the diagnosed model's controller went to its safe state on a \
+                 muscle that is that model ({f}), and fit's did not",
+                r.load_n, r.setpoint
             )
         })
     });
-    let rms = |f: fn(&LoopRun) -> f64| {
-        (runs.iter().map(|r| f(r).powi(2)).sum::<f64>() / runs.len().max(1) as f64).sqrt()
-    };
-    let (diagnosed, fit) = (rms(|r| r.diagnosed.rms_error), rms(|r| r.fit.rms_error));
-    let worse = diagnosed > fit;
-    let refusal = faulted.or_else(|| {
-        worse.then(|| {
+    let ratio = ratio(&runs);
+    let refusal = not_finite.or(faulted).or_else(|| {
+        (ratio > 1.0).then(|| {
             format!(
                 "the diagnosed model's controller tracks a muscle that is that model worse than \
-                 fit's (RMS over the loads {diagnosed:.5} against {fit:.5})"
+                 fit's ({ratio:.2}x fit's RMS error, geometric mean over {} runs)",
+                runs.len()
             )
         })
     });
@@ -145,8 +240,9 @@ fn judge(runs: Vec<LoopRun>) -> (Vec<LoopRun>, bool, String) {
     let verdict = refusal.unwrap_or_else(|| {
         format!(
             "the diagnosed model's controller tracks a muscle that is that model no worse than \
-             fit's (RMS over the loads {diagnosed:.5} against {fit:.5}) and goes to its safe \
-             state at no load where fit's does not"
+             fit's ({ratio:.2}x fit's RMS error, geometric mean over {} runs) and goes to its \
+             safe state in no run where fit's does not",
+            runs.len()
         )
     });
     (runs, accepted, verdict)
@@ -169,24 +265,29 @@ fn runs(
     let mut skipped = Vec::new();
     let mut judged = Vec::new();
     for load_n in [lo, 0.5 * (lo + hi), hi] {
-        match triangle_ends(&coeffs, effects, load_n) {
+        match span_at_load(&coeffs, effects, load_n) {
             Ok(ends) => judged.push((load_n, ends)),
             Err(why) => skipped.push(why),
         }
     }
-    let jobs: Vec<(f32, (f32, f32), usize)> = judged
+    let cases: Vec<Case> = judged
         .iter()
-        .flat_map(|&(l, ends)| [(l, ends, 0), (l, ends, 1)])
+        .flat_map(|&(l, ends)| SETPOINTS.map(|sp| (l, ends, sp)))
         .collect();
-    let done = super::parallel::map(&jobs, |&(load_n, ends, which)| {
-        track(&coeffs, effects, &blobs[which], load_n, ends)
+    let jobs: Vec<(Case, usize)> = cases
+        .iter()
+        .flat_map(|&case| [(case, 0), (case, 1)])
+        .collect();
+    let done = super::parallel::map(&jobs, |&((load_n, ends, setpoint), which)| {
+        track(&coeffs, effects, &blobs[which], load_n, ends, setpoint)
     });
-    let runs = judged
+    let runs = cases
         .iter()
         .zip(done.chunks(2))
-        .map(|(&(load_n, (low, high)), pair)| match pair {
+        .map(|(&(load_n, (low, high), setpoint), pair)| match pair {
             [Ok(d), Ok(f)] => Ok(LoopRun {
                 load_n: f64::from(load_n),
+                setpoint: setpoint.label(),
                 low: f64::from(low),
                 high: f64::from(high),
                 diagnosed: d.clone(),
@@ -200,14 +301,17 @@ fn runs(
     Ok((runs, skipped))
 }
 
-/// The triangle's ends at `load_n`: the middle [`SPAN_OF_STROKE`] of the
+/// One run's load (N), span (`low`, `high`, contraction) and set-point.
+type Case = (f32, (f32, f32), Setpoint);
+
+/// The set-points' span at `load_n`: the middle [`SPAN_OF_STROKE`] of the
 /// model's stroke as its shape correction makes it, within the contraction
 /// the controller's default configuration reads as plausible. A load
 /// whose muscle at rest lies outside that contraction (an isometric
 /// record's muscle held stretched under a large force) is not judged:
 /// the controller goes to its safe state on its first reading, whatever
 /// its model.
-fn triangle_ends(coeffs: &Coeffs, effects: &Effects, load_n: f32) -> Result<(f32, f32), String> {
+fn span_at_load(coeffs: &Coeffs, effects: &Effects, load_n: f32) -> Result<(f32, f32), String> {
     let model = coeffs.load_model(load_n).map_err(|e| e.to_string())?;
     let (mut root, mut max) = (model.root_contraction(), model.max_contraction());
     if let Some(shape) = &effects.shape {
@@ -229,13 +333,14 @@ fn triangle_ends(coeffs: &Coeffs, effects: &Effects, load_n: f32) -> Result<(f32
 }
 
 /// The controller booted from `blob` on a plant of `coeffs` with `effects`
-/// at `load_n`, along the triangle between `low` and `high`.
+/// at `load_n`, along `setpoint` between `low` and `high`.
 fn track(
     coeffs: &Coeffs,
     effects: &Effects,
     blob: &[u8],
     load_n: f32,
     (low, high): (f32, f32),
+    setpoint: Setpoint,
 ) -> Result<LoopTracking, String> {
     // The supply reaches the model's `Pmax` with room for the loop.
     let config = PlantConfig {
@@ -247,18 +352,11 @@ fn track(
     let plant =
         MusclePlant::with_effects(*coeffs, *effects, load_n, config).map_err(|e| e.to_string())?;
     let dt_s = firmware::controller::ControllerConfig::DEFAULT.dt_s;
-    let steps = (CYCLES as f32 * PERIOD_S / dt_s + 0.5) as u32;
-    let desired = |t_s: f32| {
-        let phase = t_s / PERIOD_S;
-        let frac = phase - phase.floor();
-        let up = if frac < 0.5 {
-            2.0 * frac
-        } else {
-            2.0 - 2.0 * frac
-        };
-        low + (high - low) * up
-    };
-    let t = firmware::scenario::track_on(blob, plant, load_n, desired, steps, steps / CYCLES)
+    let (run_s, unjudged_s) = setpoint.duration_s();
+    let steps = (run_s / dt_s + 0.5) as u32;
+    let eval_from = (unjudged_s / dt_s + 0.5) as u32;
+    let desired = |t_s: f32| setpoint.at(t_s, low, high);
+    let t = firmware::scenario::track_on(blob, plant, load_n, desired, steps, eval_from)
         .map_err(|e| format!("the firmware refuses it: {e}"))?;
     Ok(LoopTracking {
         rms_error: f64::from(t.rms_error),
@@ -286,6 +384,7 @@ mod tests {
     fn run(load_n: f64, diagnosed: LoopTracking, fit: LoopTracking) -> LoopRun {
         LoopRun {
             load_n,
+            setpoint: Setpoint::Triangle(4.0).label(),
             low: 0.05,
             high: 0.15,
             diagnosed,
@@ -308,13 +407,37 @@ mod tests {
         // Both controllers go to their safe state there: the errors decide.
         let both = run(350.0, tracking(0.001, fault), tracking(0.002, fault));
         assert!(judge(vec![good(), both]).1);
-        // Worse at one load, better overall: accepted; worse overall: refused.
-        let worse = run(600.0, tracking(0.0025, None), tracking(0.002, None));
+        // Worse in one run, better in the geometric mean: accepted; worse
+        // in the mean: refused.
+        let worse = run(600.0, tracking(0.003, None), tracking(0.002, None));
         assert!(judge(vec![good(), worse]).1);
-        let worse = run(600.0, tracking(0.004, None), tracking(0.002, None));
+        let worse = run(600.0, tracking(0.0045, None), tracking(0.002, None));
         let (_, accepted, verdict) = judge(vec![good(), worse]);
         assert!(!accepted);
         assert!(verdict.contains("worse than fit's"), "{verdict}");
+        let lost = run(600.0, tracking(f64::NAN, None), tracking(0.002, None));
+        let (_, accepted, verdict) = judge(vec![good(), lost]);
+        assert!(!accepted);
+        assert!(verdict.contains("not finite"), "{verdict}");
+    }
+
+    #[test]
+    fn the_setpoints_span_low_to_high() {
+        let (low, high) = (0.05, 0.15);
+        let tri = Setpoint::Triangle(4.0);
+        assert!((tri.at(0.0, low, high) - low).abs() < 1e-6);
+        assert!((tri.at(2.0, low, high) - high).abs() < 1e-6);
+        assert!((tri.at(5.0, low, high) - 0.1).abs() < 1e-6);
+        let steps = Setpoint::Steps(2.0);
+        let held: Vec<f32> = [1.0, 3.0, 5.0, 7.0, 9.0]
+            .iter()
+            .map(|&t| steps.at(t, low, high))
+            .collect();
+        for (got, want) in held.iter().zip([0.05, 0.15, 0.1, 0.075, 0.05]) {
+            assert!((got - want).abs() < 1e-6, "{held:?}");
+        }
+        assert_eq!(tri.duration_s(), (12.0, 4.0));
+        assert_eq!(steps.duration_s(), (16.0, 2.0));
     }
 
     #[test]
@@ -323,7 +446,8 @@ mod tests {
         let none = Effects::NONE;
         let same = check((&params, &none), (&params, &none));
         assert!(same.accepted, "{same:?}");
-        assert_eq!(same.runs.len(), 3);
+        assert_eq!(same.runs.len(), 3 * SETPOINTS.len());
+        assert_eq!(same.diagnosed_over_fit, 1.0);
         for r in &same.runs {
             assert_eq!(r.diagnosed, r.fit);
             assert_eq!(r.diagnosed.faults, 0, "{r:?}");

@@ -401,8 +401,8 @@ pub fn summary(r: &DiagnoseReport) -> String {
     s
 }
 
-/// The summary's lines on the closed-loop check: each load's two runs and
-/// the verdict.
+/// The summary's lines on the closed-loop check: each run and the
+/// verdict.
 fn closed_loop_lines(c: &super::closed_loop::ClosedLoopCheck) -> String {
     let run = |t: &super::closed_loop::LoopTracking| match &t.first_fault {
         Some(f) => format!("{:.5} (safe state: {f})", t.rms_error),
@@ -410,12 +410,13 @@ fn closed_loop_lines(c: &super::closed_loop::ClosedLoopCheck) -> String {
     };
     let mut s = String::from(
         "closed loop: the firmware's controller on a simulated muscle that is the diagnosed model, \
-         a triangle over the middle of its stroke (RMS error after the first cycle)\n",
+         over the middle of its stroke (RMS error after the start)\n",
     );
     for r in &c.runs {
         s.push_str(&format!(
-            "  {:>5.0} N, {:.3}-{:.3}: diagnosed model {}, fit's model {}\n",
+            "  {:>5.0} N, {:<15} {:.3}-{:.3}: diagnosed model {}, fit's model {}\n",
             r.load_n,
+            r.setpoint,
             r.low,
             r.high,
             run(&r.diagnosed),
