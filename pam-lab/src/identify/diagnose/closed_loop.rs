@@ -65,23 +65,16 @@ impl Setpoint {
 
     /// The set-point at `t_s` over `[low, high]`.
     fn at(self, t_s: f32, low: f32, high: f32) -> f32 {
-        let up = match self {
+        match self {
             Setpoint::Triangle(period_s) => {
-                let phase = t_s / period_s;
-                let frac = phase - phase.floor();
-                if frac < 0.5 {
-                    2.0 * frac
-                } else {
-                    2.0 - 2.0 * frac
-                }
+                firmware::exercise::triangle_over(t_s, period_s, low, high)
             }
             Setpoint::Steps(hold_s) => {
                 const LEVELS: [f32; 4] = [0.0, 1.0, 0.5, 0.25];
                 let k = (t_s / hold_s) as usize % LEVELS.len();
-                LEVELS.get(k).copied().unwrap_or(0.0)
+                low + (high - low) * LEVELS.get(k).copied().unwrap_or(0.0)
             }
-        };
-        low + (high - low) * up
+        }
     }
 
     /// `"triangle 4 s"`, `"steps held 2 s"`.

@@ -633,7 +633,8 @@ fn diagnose_beside(
         (a, b) => a.or(b.map(|(_, b)| b)),
     };
     // The closed-loop check (`closed_loop.rs`): the firmware's controller
-    // on a muscle that is the model written, against fit's controller.
+    // on a muscle that is the diagnosed model, against fit's controller;
+    // fit's model is written where it refuses the diagnosed one.
     let closed_loop = fit_written.as_ref().map(|w| {
         progress("closed loop: the firmware's controller on a muscle that is the diagnosed model, beside fit's");
         closed_loop::check((&model_params, &current), (&w.params, &w.effects))
