@@ -73,13 +73,9 @@ fn main() -> std::io::Result<()> {
         damping_n_s: 1500.0,
         ..reference
     };
-    // Load-dependent width: friction mostly proportional to the active
-    // force (F_c0 20 -> 5 N, μ 0.11 -> 0.25), so the loop grows with load.
-    let width = MuscleParams {
-        friction_base_n: 5.0,
-        friction_ratio: 0.25,
-        ..reference
-    };
+    // Load-dependent width: the end-to-end run's width rig, friction
+    // mostly in the load's path, so the loop's height grows with the load.
+    let width = host_sim::effect_rigs::WIDTH_MUSCLE;
     let records = [
         ("reference.csv", isotonic(reference, 1)),
         ("rate_dependence.csv", isotonic(rate, 2)),

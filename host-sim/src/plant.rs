@@ -66,6 +66,14 @@ pub struct MuscleParams {
     pub friction_base_n: f64,
     /// `μ`: friction saturation force per newton of active force.
     pub friction_ratio: f64,
+    /// `μ_L`: friction saturation force per newton of hung load, from the
+    /// load's own path (a rope over a pulley whose bearing carries the
+    /// load, a guided carriage): 0 for none. The braid's friction (`μ`,
+    /// with the active force) grows with the pressure, and every load is
+    /// swept over the same pressures, so at one point of the stroke it
+    /// leaves the loop's pressure height nearly the same at every load
+    /// ([`MuscleParams::loop_height_mpa`]); this one grows it with the load.
+    pub load_friction_ratio: f64,
     /// `δ_i`: break-away contraction of each slip element (fraction of `L0`).
     pub slip_contraction: [f64; SLIP_ELEMENTS],
     /// `w_i`: weight of each slip element (they sum to 1).
@@ -109,6 +117,7 @@ impl MuscleParams {
         rubber_stiffness_n: 1_728.0,
         friction_base_n: 20.0,
         friction_ratio: 0.11,
+        load_friction_ratio: 0.0,
         slip_contraction: [0.0015, 0.0025, 0.004, 0.006, 0.009, 0.013, 0.018, 0.025],
         slip_weight: [0.125; SLIP_ELEMENTS],
         damping_n_s: 300.0,
@@ -177,9 +186,33 @@ impl MuscleParams {
         }
     }
 
-    /// Friction saturation force `F_sat = F_c0 + μ·T_act`, N.
-    pub fn friction_saturation_n(&self, active_tension_n: f64) -> f64 {
-        self.friction_base_n + self.friction_ratio * active_tension_n
+    /// Friction saturation force `F_sat = F_c0 + μ·T_act + μ_L·L`, N, under
+    /// the hung load `load_n` (`L`, not below 0).
+    pub fn friction_saturation_n(&self, active_tension_n: f64, load_n: f64) -> f64 {
+        self.friction_base_n
+            + self.friction_ratio * active_tension_n
+            + self.load_friction_ratio * load_n.max(0.0)
+    }
+
+    /// The loop's height at `contraction` under `load_n`, MPa: the pressure
+    /// the contraction branch needs there minus the expansion branch's,
+    /// friction fully slipping (the loop's height away from reversals, as
+    /// the paper's `2·be` is at mid-stroke). By bisection on each branch's
+    /// static contraction over 0–1 MPa.
+    pub fn loop_height_mpa(&self, load_n: f64, contraction: f64) -> f64 {
+        let pressure_at = |sign: f64| {
+            let (mut lo, mut hi) = (0.0, 1.0);
+            for _ in 0..50 {
+                let mid = 0.5 * (lo + hi);
+                if self.static_contraction_with_friction(mid, load_n, sign) < contraction {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            0.5 * (lo + hi)
+        };
+        pressure_at(1.0) - pressure_at(-1.0)
     }
 
     /// Inner volume at `contraction`, m³: the braid's cylinder,
@@ -207,7 +240,9 @@ impl MuscleParams {
     ) -> f64 {
         let net = |x: f64| {
             let act = self.active_tension_n(pressure_mpa, x);
-            act + self.bladder_tension_n(x) - sign * self.friction_saturation_n(act) - load_n
+            act + self.bladder_tension_n(x)
+                - sign * self.friction_saturation_n(act, load_n)
+                - load_n
         };
         let (mut lo, mut hi) = (-0.2, 0.6);
         for _ in 0..60 {
@@ -295,7 +330,7 @@ impl Muscle {
     pub fn step(&mut self, pressure_mpa: f64, load_n: f64, dt_s: f64) -> MuscleForces {
         let p = &self.params;
         let active_n = p.active_tension_n(pressure_mpa, self.contraction);
-        let sat_n = p.friction_saturation_n(active_n);
+        let sat_n = p.friction_saturation_n(active_n, load_n);
         let friction_n: f64 = self
             .slip
             .iter()
