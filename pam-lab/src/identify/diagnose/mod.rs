@@ -678,6 +678,10 @@ fn diagnose_beside(
     } else {
         0.0
     };
+    let warnings = model_warnings(&current, &paced, samples, &setup.heldout)
+        .into_iter()
+        .chain(warnings::unjudged_warnings(&rounds, cfg))
+        .collect();
     Ok(DiagnoseReport {
         source: record.source.clone(),
         test_kind: test,
@@ -717,7 +721,7 @@ fn diagnose_beside(
         correlation_length: setup.corr_len,
         min_improvement: cfg.min_improvement,
         min_bic_drop: cfg.min_bic_drop,
-        warnings: model_warnings(&current, &paced, samples, &setup.heldout),
+        warnings,
         holdout_cover,
         predicted_base,
         predicted_after,

@@ -2,7 +2,9 @@
 
 use pam_core::Effects;
 
+use super::config::DiagnoseConfig;
 use super::regimes::Regimes;
+use super::report::Round;
 use crate::record::Sample;
 
 /// Least time the training part must hold the pressure after a step for a
@@ -46,6 +48,46 @@ pub fn model_warnings(
         }
     }
     warnings
+}
+
+/// What the record would need to show each effect's own regime.
+fn regime_protocol(regime: &str) -> &'static str {
+    match regime {
+        "hold_after_step" => "steps of the pressure held for several seconds",
+        "fast_ramp" => "ramps of the pressure several times faster than the rest",
+        "after_inner_reversal" => "reversals inside the loop",
+        _ => "more of the protocol",
+    }
+}
+
+/// The effects the record cannot judge: in some round a candidate cut the
+/// held-out error and the BIC by the evidence rule's margins but no
+/// held-out sample lies in its own regime (a record of ramps alone has no
+/// hold after a step for creep), so it was not added. One sentence per
+/// effect, its largest cut, and what to record.
+pub fn unjudged_warnings(rounds: &[Round], cfg: &DiagnoseConfig) -> Vec<String> {
+    let mut found: Vec<(&'static str, &'static str, f64)> = Vec::new();
+    for c in rounds.iter().flat_map(|r| &r.candidates) {
+        let judged = c.signature.rms_before.is_finite() && c.signature.rms_after.is_finite();
+        let earns_overall = c.improvement >= cfg.min_improvement && c.bic_drop >= cfg.min_bic_drop;
+        if c.earned || judged || !earns_overall {
+            continue;
+        }
+        match found.iter_mut().find(|(n, _, _)| *n == c.name) {
+            Some(f) => f.2 = f.2.max(c.improvement),
+            None => found.push((c.name, c.signature.regime, c.improvement)),
+        }
+    }
+    found
+        .into_iter()
+        .map(|(name, regime, cut)| {
+            format!(
+                "{name} cuts up to {:.1} % of the held-out error, but none of the held-out samples lies in its own regime ({regime}), so the record cannot tell it from the effects named: record {} to judge it",
+                100.0 * cut,
+                regime_protocol(regime)
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -102,5 +144,70 @@ mod tests {
         );
         // Without a rate law the holds do not matter.
         assert!(model_warnings(&Effects::NONE, &paced(&none), &samples, &none).is_empty());
+    }
+
+    fn candidate(
+        name: &'static str,
+        cut: f64,
+        bic: f64,
+        regime_after: f64,
+    ) -> super::super::candidates::CandidateResult {
+        use super::super::candidates::{CandidateResult, Signature};
+        use super::super::evaluate::ModelErrors;
+        let params = pam_core::Params::DEFAULT;
+        CandidateResult {
+            name,
+            rms: 1.0 - cut,
+            improvement: cut,
+            bic_drop: bic,
+            parameters: 2,
+            earned: false,
+            verdict: String::new(),
+            variants: None,
+            signature: Signature {
+                regime: "hold_after_step",
+                rms_before: if regime_after.is_nan() { f64::NAN } else { 1.0 },
+                rms_after: regime_after,
+            },
+            effects: Effects::NONE,
+            errors: ModelErrors {
+                rms_heldout: 1.0 - cut,
+                rms_train: 1.0,
+                bic: 0.0,
+                regimes: Vec::new(),
+                loads: Vec::new(),
+                static_shape: 0.0,
+            },
+            base_params: params,
+            coeffs: pam_core::Coeffs::new(params).expect("the paper's defaults"),
+        }
+    }
+
+    #[test]
+    fn an_effect_whose_regime_is_not_held_out_is_named_with_what_to_record() {
+        let cfg = DiagnoseConfig::default();
+        let round = |candidates| Round {
+            rms_start: 1.0,
+            candidates,
+            added: None,
+        };
+        // Creep cuts 18 % and the BIC, but no hold after a step is held
+        // out: told, once, with its largest cut.
+        let rounds = [
+            round(vec![candidate("creep", 0.18, 50.0, f64::NAN)]),
+            round(vec![candidate("creep", 0.24, 80.0, f64::NAN)]),
+        ];
+        let w = unjudged_warnings(&rounds, &cfg);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].starts_with("creep cuts up to 24.0 %"), "{w:?}");
+        assert!(w[0].contains("steps of the pressure held"), "{w:?}");
+        // Judged in its regime, or under the margins: nothing to tell.
+        for c in [
+            candidate("creep", 0.18, 50.0, 0.9),
+            candidate("creep", 0.10, 50.0, f64::NAN),
+            candidate("creep", 0.18, 5.0, f64::NAN),
+        ] {
+            assert!(unjudged_warnings(&[round(vec![c])], &cfg).is_empty());
+        }
     }
 }
