@@ -678,7 +678,7 @@ fn diagnose_beside(
     } else {
         0.0
     };
-    let warnings = model_warnings(&current, &paced, samples, &setup.heldout)
+    let warnings = model_warnings(&written_effects, &paced, samples, &setup.heldout)
         .into_iter()
         .chain(warnings::unjudged_warnings(&rounds, cfg))
         .collect();

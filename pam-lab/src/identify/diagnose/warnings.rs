@@ -22,7 +22,8 @@ pub fn training_hold_s(paced: &Regimes, samples: &[Sample], heldout: &[bool]) ->
         .fold(0.0, |a, b| a + b)
 }
 
-/// What a record leaves open about `effects`, one sentence each.
+/// What a record leaves open about `effects`, the model written (a rate
+/// law the closed-loop check refused is not in it), one sentence each.
 ///
 /// A rate law fitted on a record whose training part holds the pressure
 /// after a step for under [`MIN_TRAINING_HOLD_S`] has its factor at rest
