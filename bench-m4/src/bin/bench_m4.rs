@@ -613,8 +613,13 @@ fn main() -> ! {
     });
 
     // The firmware's controller with the in-memory simulated sensors and
-    // PWM: set-point ramping up then down, sensors a little behind.
-    let Ok(mut ctl) = Controller::new(coeffs, ControllerConfig::DEFAULT, 200.0) else {
+    // PWM: set-point ramping up then down, sensors a little behind. Every
+    // controller here runs its model check from the first period (no pause
+    // at the start, `implausible_start_s`): the check is part of the
+    // period measured.
+    let mut measured = ControllerConfig::DEFAULT;
+    measured.safety.implausible_start_s = 0.0;
+    let Ok(mut ctl) = Controller::new(coeffs, measured, 200.0) else {
         fail("controller refused");
     };
     let bus = SimBus::new();
@@ -845,7 +850,7 @@ fn main() -> ! {
         ("effects", Feedforward::HysteresisEffects(all), None),
     ];
     for (name, ff, adaptation) in feedforwards {
-        let mut cfg = ControllerConfig::DEFAULT;
+        let mut cfg = measured;
         cfg.feedforward = black_box(ff);
         cfg.adaptation = black_box(adaptation);
         let Ok(base) = Controller::new(coeffs, cfg, 200.0) else {
@@ -855,7 +860,7 @@ fn main() -> ! {
     }
     // The Preisach model pam flashes where it is the more accurate
     // (`pam-lab compare`): bench-m4's identified table, its feedforward.
-    let mut cfg = ControllerConfig::DEFAULT;
+    let mut cfg = measured;
     cfg.feedforward = black_box(Feedforward::Preisach);
     let Ok(base) = Controller::new_preisach(PREISACH16, cfg, 200.0) else {
         fail("Preisach controller refused");

@@ -139,6 +139,13 @@ pub struct SafetyConfig {
     /// dynamics, with the mass of the new load, onto the new load's loop,
     /// and until it gets there the new model's band does not hold it.
     pub implausible_settle_s: f32,
+    /// The model check pauses for this long from the controller's start,
+    /// s (≥ 0): its first periods drive the muscle from rest to the
+    /// set-point, and a slow muscle lags that first rise of the pressure
+    /// beyond the band's allowance (`implausible_lag_s`; host-sim's rate
+    /// rig, five times the reference's damping, tripped 0.2 s into a run).
+    /// The readings' own rules run from the first period.
+    pub implausible_start_s: f32,
     /// Periods outside the band before the fault; 0 disables the check.
     /// Covers the mechanical lag behind a pressure change and the tracker's
     /// load debounce after a load step (the model is the old load's until
@@ -313,6 +320,7 @@ impl ControllerConfig {
             // of the chamber pressure.
             implausible_lag_s: 0.05,
             implausible_settle_s: 1.0,
+            implausible_start_s: 1.0,
             implausible_periods: 100,
             overrun_limit: 3,
             // A fourth trip within 10 s latches.
@@ -391,6 +399,10 @@ impl ControllerConfig {
                 non_negative(s.implausible_settle_s),
                 Setting::ImplausibleSettleS,
             ),
+            (
+                non_negative(s.implausible_start_s),
+                Setting::ImplausibleStartS,
+            ),
             (memory_ok, Setting::MemoryShape),
             (effects_ok, Setting::FeedforwardEffects),
             (s.recovery_samples >= 1, Setting::RecoverySamples),
@@ -447,6 +459,8 @@ pub enum Setting {
     ImplausibleLagS,
     /// `implausible_settle_s`: finite and ≥ 0 s.
     ImplausibleSettleS,
+    /// `implausible_start_s`: finite and ≥ 0 s.
+    ImplausibleStartS,
     /// The non-local memory's shape: finite and in [0.05, 50].
     MemoryShape,
     /// The effects of [`Feedforward::HysteresisEffects`]: each valid
@@ -489,6 +503,7 @@ impl Setting {
             Setting::ImplausibleContraction => "implausible_contraction",
             Setting::ImplausibleLagS => "implausible_lag_s",
             Setting::ImplausibleSettleS => "implausible_settle_s",
+            Setting::ImplausibleStartS => "implausible_start_s",
             Setting::MemoryShape | Setting::FeedforwardEffects | Setting::FeedforwardModel => {
                 "feedforward"
             }
@@ -515,7 +530,9 @@ impl Setting {
             | Setting::VentFallMpa => "must be finite and > 0 MPa",
             Setting::SupplyLossFlow | Setting::VentFlow => "must be in (0, 1]",
             Setting::VentMinMpa => "must be finite and >= 0 MPa",
-            Setting::ImplausibleLagS | Setting::ImplausibleSettleS => "must be finite and >= 0 s",
+            Setting::ImplausibleLagS | Setting::ImplausibleSettleS | Setting::ImplausibleStartS => {
+                "must be finite and >= 0 s"
+            }
             Setting::ImplausibleContraction => "must be finite and > 0",
             Setting::MemoryShape => "memory shape must be finite and in [0.05, 50]",
             Setting::FeedforwardEffects => {

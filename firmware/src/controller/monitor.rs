@@ -446,7 +446,8 @@ impl Monitor {
             outside: 0,
             // `as` saturates (and a NaN, excluded by validation, gives 0).
             settle_periods: (s.implausible_settle_s / dt_s + 0.5) as u16,
-            settling: 0,
+            // The check starts paused (`implausible_start_s`).
+            settling: (s.implausible_start_s / dt_s + 0.5) as u16,
             overrun_limit: s.overrun_limit,
             overruns: 0,
             latch_trips: s.latch_trips,

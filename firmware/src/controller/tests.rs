@@ -738,6 +738,47 @@ fn model_only() -> ControllerConfig {
     cfg
 }
 
+/// A controller of `cfg` past the model check's pause at its start: fed
+/// `implausible_start_s` of samples inside the band at `p` MPa.
+fn past_start(cfg: ControllerConfig, p: f32) -> Controller {
+    let mut c = controller_with(cfg);
+    let x = c
+        .tracker()
+        .unwrap()
+        .model()
+        .contraction(p, Branch::Contraction);
+    for k in 0..(cfg.safety.implausible_start_s / cfg.dt_s) as u32 + 1 {
+        let d = (k % 2) as f32 * 1e-4;
+        assert_eq!(c.update(&good(p + d, x + d, 200.0), 0.12).fault, None);
+    }
+    c
+}
+
+#[test]
+fn the_model_check_starts_paused_as_after_a_load_switch() {
+    // A muscle beyond the band from the first period (a slow muscle
+    // still at rest while the pressure rises): no fault while the check
+    // settles, then the fault after its time outside the band.
+    let cfg = model_only();
+    let s = cfg.safety;
+    let mut c = controller_with(cfg);
+    let p = 0.3;
+    let settle = (s.implausible_start_s / cfg.dt_s + 0.5) as u32;
+    let n = u32::from(s.implausible_periods);
+    for k in 0..(settle + n + 10) {
+        let st = c.update(
+            &beside_band(&c, k, p, s.implausible_contraction + 0.01),
+            0.12,
+        );
+        if let Some(f) = st.new_fault {
+            assert_eq!(f, Fault::Implausible(Check::Model));
+            assert!(k >= settle + n - 1, "{k}");
+            return;
+        }
+    }
+    panic!("never tripped after the start's settling");
+}
+
 #[test]
 fn fast_and_full_checks_agree_on_every_sample() {
     // One rule table behind both paths: for every combination of readings
@@ -849,8 +890,8 @@ fn the_model_check_trips_after_its_time_outside_the_band() {
     let cfg = model_only();
     let s = cfg.safety;
     let n = u32::from(s.implausible_periods);
-    let mut c = controller_with(cfg);
     let p = 0.3;
+    let mut c = past_start(cfg, p);
     // Inside the band, and up to the bound beyond it: never.
     for k in 0..(3 * n) {
         let smp = beside_band(&c, k, p, s.implausible_contraction - 0.002);
@@ -867,7 +908,7 @@ fn the_model_check_trips_after_its_time_outside_the_band() {
     assert_eq!(st.new_fault, Some(Fault::Implausible(Check::Model)));
     assert_eq!(st.command, ValveCommand::Safe(SafeState::Exhaust));
     // Below the contraction branch too.
-    let mut c = controller_with(cfg);
+    let mut c = past_start(cfg, p);
     let m = c.tracker().unwrap().model().clone();
     let below = m.contraction(p, Branch::Contraction) - s.implausible_contraction - 0.01;
     let tripped = (0..n).map(|k| c.update(&good(p, below + (k % 2) as f32 * 1e-4, 200.0), 0.12));
@@ -888,7 +929,7 @@ fn the_model_band_follows_the_pressure_with_the_lag() {
     // band is accepted while the lagged minimum relaxes (lag 50 ms), then
     // not.
     let cfg = model_only();
-    let mut c = controller_with(cfg);
+    let mut c = past_start(cfg, 0.1);
     let m = c.tracker().unwrap().model().clone();
     let x_old = m.contraction(0.1, Branch::Contraction);
     for k in 0..200u32 {
