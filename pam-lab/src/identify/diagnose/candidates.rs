@@ -365,8 +365,7 @@ impl CandidateResult {
     /// Its held-out cut times its signature cut (the evidence rule's two
     /// located measures), for ranking the candidates that earn their place.
     pub fn located_gain(&self) -> f64 {
-        let signature_cut = 1.0 - self.signature.rms_after / self.signature.rms_before;
-        let g = self.improvement.max(0.0) * signature_cut.max(0.0);
+        let g = self.improvement.max(0.0) * self.signature.cut().max(0.0);
         if g.is_finite() {
             g
         } else {
@@ -384,6 +383,14 @@ pub struct Signature {
     pub rms_before: f64,
     /// Held-out RMS there with the candidate.
     pub rms_after: f64,
+}
+
+impl Signature {
+    /// The relative cut of the held-out RMS in the regime; not finite
+    /// where no held-out sample lies in it (the regime cannot judge).
+    pub fn cut(&self) -> f64 {
+        1.0 - self.rms_after / self.rms_before
+    }
 }
 
 /// The best of `starts` for `kind`'s own parameters on `coeffs` with
@@ -436,7 +443,7 @@ fn verdict(
     cfg: &DiagnoseConfig,
 ) -> String {
     let pct = |x: f64| 100.0 * x;
-    let cut = 1.0 - signature.rms_after / signature.rms_before;
+    let cut = signature.cut();
     let mut failed = Vec::new();
     if improvement.is_nan() || improvement < cfg.min_improvement {
         failed.push(format!(
@@ -730,7 +737,7 @@ fn judge(
         rms_before: regime_rms(current_errors),
         rms_after: regime_rms(&errors),
     };
-    let signature_cut = 1.0 - signature.rms_after / signature.rms_before;
+    let signature_cut = signature.cut();
     let earned = improvement >= cfg.min_improvement
         && (with_table || bic_drop >= cfg.min_bic_drop)
         && signature_cut >= cfg.min_improvement;

@@ -69,7 +69,7 @@ fn regime_protocol(regime: &str) -> &'static str {
 pub fn unjudged_warnings(rounds: &[Round], cfg: &DiagnoseConfig) -> Vec<String> {
     let mut found: Vec<(&'static str, &'static str, f64)> = Vec::new();
     for c in rounds.iter().flat_map(|r| &r.candidates) {
-        let judged = c.signature.rms_before.is_finite() && c.signature.rms_after.is_finite();
+        let judged = c.signature.cut().is_finite();
         let earns_overall = c.improvement >= cfg.min_improvement && c.bic_drop >= cfg.min_bic_drop;
         if c.earned || judged || !earns_overall {
             continue;
