@@ -27,8 +27,8 @@ pub const PAM_PARAMS: Params = Params {
 
 /// The non-local memory on the paper model (chosen on the training samples).
 pub const MEMORY: NonLocalMemory = NonLocalMemory {
-    shape: 5.0,
-    merge_span: 1.0,
+    shape: 3.0,
+    merge_span: 0.02,
 };
 
 /// The model pam-lab's fit writes: its parameters (pam_lab::identify::fit::fit as `pam-lab fit` runs it) ...
@@ -75,8 +75,8 @@ pub const PAM_FIT_SHAPE: Option<pam_core::effects::ConstraintShape> = Some(pam_c
 
 /// The non-local memory on fit's model (chosen on the training samples).
 pub const FIT_MEMORY: NonLocalMemory = NonLocalMemory {
-    shape: 5.0,
-    merge_span: 1.0,
+    shape: 1.0,
+    merge_span: 0.02,
 };
 
 /// Prandtl–Ishlinskii, 16 play operators, at 6 loads.

@@ -132,9 +132,10 @@ impl Law {
     }
 
     /// How the feedforward's model widens the model check's band now
-    /// ([`ModelBand`]): the offset its width and rate added on the last
-    /// period, its shape at `load_n` (made once per load and kept with the
-    /// feedforward's state, which inverts the same shape).
+    /// ([`ModelBand`]): the offset its width and rate added on its last
+    /// call (the check runs after the law, so this period's), its shape at
+    /// `load_n` (made once per load and kept with the feedforward's state,
+    /// which inverts the same shape).
     pub fn model_band(&mut self, params: &Params, model: &LoadModel, load_n: f32) -> ModelBand<'_> {
         let Some(inv) = &self.inverse else {
             return ModelBand::default();

@@ -23,8 +23,7 @@
 //!    instead of a deadband later on a noisy measurement) and the checked
 //!    load (which picks the model of the load family, eqs. 16–21);
 //! 4. check the pressure's response to the last valve command (supply
-//!    loss, a vent that does not vent), overruns, and the measured
-//!    contraction against the model's band at the measured pressure;
+//!    loss, a vent that does not vent) and overruns;
 //! 5. feedforward: the pressure that holds the desired contraction on the
 //!    active branch, `HMC` or `HME` of eqs. (25)/(26);
 //! 6. PI on the contraction error, added to the feedforward, clamped to the
@@ -33,7 +32,12 @@
 //!    `[-1, 1]` for the [`Valve`]. Proportional alone suffices there: the
 //!    chamber integrates flow, so a constant pressure needs zero flow and
 //!    the pressure loop has no steady-state error without leaks; leaks are
-//!    taken up by the outer integrator.
+//!    taken up by the outer integrator;
+//! 8. check the measured contraction against the model's band at the
+//!    measured pressure (the model as a virtual sensor); where it trips,
+//!    the safe state replaces the command of step 7 in the same period. A
+//!    period whose memory feedforward made a minor loop's ends leaves
+//!    this check's two inverses to the next one: its count holds.
 //!
 //! On a fault the valve goes to the configured [`SafeState`] in the same
 //! step (so within one control period of the bad reading), the integrator is
@@ -103,9 +107,12 @@ pub const TABLE_BUILD_UNITS_PER_STEP_EFFECTS: u16 = 4;
 /// ends (a Newton step each) and both its points to the new scale, about
 /// 400 instructions on the M4F over a loop served from its cache. With four
 /// units (100–120 instructions each) such periods of a build reached 2 072
-/// (bench-m4's `memory_rate`); with three they stay under 2 000, and a
-/// complete build takes at most `BUILD_UNITS_MAX / 3` = 587 periods.
-pub const TABLE_BUILD_UNITS_PER_STEP_MEMORY_RATE: u16 = 3;
+/// (bench-m4's `memory_rate`), with three 2 009 once the memory's minor
+/// loops were kept from running backwards (their inverse leaves a
+/// reversal by its closed form, not at the turning point); with two they
+/// stay under 2 000, and a complete build takes at most
+/// `BUILD_UNITS_MAX / 2` = 880 periods.
+pub const TABLE_BUILD_UNITS_PER_STEP_MEMORY_RATE: u16 = 2;
 
 /// The table-build units per step for `feedforward`.
 fn table_build_units(feedforward: &Feedforward) -> u16 {
@@ -147,7 +154,8 @@ pub struct Step {
     pub tracker: Update,
     /// How far the measured contraction lay outside the model's band at the
     /// measured pressure, before the bound `implausible_contraction` (0
-    /// inside the band, or when the check did not run: in a fault).
+    /// inside the band, or when the check did not run: in a fault, paused,
+    /// or on a period whose memory feedforward made a minor loop's ends).
     pub model_excess: f32,
 }
 
@@ -532,21 +540,9 @@ impl Controller {
                 a.checked_contraction(tracker.model(), contraction)
             }
         };
-        let band = self
-            .law
-            .model_band(coeffs.params(), tracker.model(), tracker.load_n());
-        let (excess, fault) = self.monitor.check_model(
-            tracker.model(),
-            &band,
-            pressure_mpa,
-            judged,
-            self.fault.is_none(),
-        );
-        step.model_excess = excess;
-        if let Some(f) = fault {
-            self.enter_fault(f, &mut step);
-            return step;
-        }
+        let model_due = self
+            .monitor
+            .model_check_due(pressure_mpa, self.fault.is_none());
         if !resume(
             &mut self.fault,
             &mut self.good_run,
@@ -569,6 +565,22 @@ impl Controller {
             pressure_mpa,
             contraction,
         );
+        // The model check, after the law: a period whose memory feedforward
+        // made a minor loop's ends (a reversal's new loop, its search, a
+        // wipe-out's) leaves the check's two inverses to the next period, as
+        // it leaves the table build; the count holds (a fault's trip is a
+        // period later), and the command is replaced where the check trips.
+        if model_due && !self.law.rebuilt_loop() {
+            let band = self
+                .law
+                .model_band(coeffs.params(), tracker.model(), tracker.load_n());
+            let (excess, fault) = self.monitor.check_model(tracker.model(), &band, judged);
+            step.model_excess = excess;
+            if let Some(f) = fault {
+                self.enter_fault(f, &mut step);
+                return step;
+            }
+        }
         step.feedforward_mpa = c.feedforward_mpa;
         step.pressure_cmd_mpa = c.pressure_cmd_mpa;
         step.command = ValveCommand::Flow(c.flow);

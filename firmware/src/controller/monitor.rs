@@ -526,25 +526,14 @@ impl Monitor {
         }
     }
 
-    /// The model as a virtual sensor: how far `contraction` lies outside
-    /// the band `[x_C(p_lo), x_E(p_hi)]` of `model`, with `p_lo`, `p_hi`
-    /// the lagged minimum and maximum of the pressure (0 inside), and
-    /// whether it has been beyond the band by more than the bound for
-    /// `implausible_periods` periods in a row. The envelope follows every
-    /// good sample; the count only runs while `controlling`.
-    ///
-    /// A model with effects widens the band ([`ModelBand`]): by the extra
-    /// ellipse offset of its width and rate, and through its shape
-    /// correction.
+    /// The model check's period: the pressure envelope follows every good
+    /// sample (lagged minimum and maximum, `p_lo` and `p_hi`), and whether
+    /// the check judges this period ([`Self::check_model`]): not while
+    /// paused (the start, a load switch, a table build: their settling
+    /// time counts down), not while not `controlling` (the count restarts),
+    /// and not when the check is off.
     #[inline(always)]
-    pub fn check_model(
-        &mut self,
-        model: &LoadModel,
-        widen: &ModelBand<'_>,
-        pressure_mpa: f32,
-        contraction: f32,
-        controlling: bool,
-    ) -> (f32, Option<Fault>) {
+    pub fn model_check_due(&mut self, pressure_mpa: f32, controlling: bool) -> bool {
         let g = self.envelope_gain;
         let (lo, hi) = (self.envelope_lo_mpa, self.envelope_hi_mpa);
         // Follow at once outward (NaN: the first sample), relax inward.
@@ -561,8 +550,27 @@ impl Monitor {
         if self.implausible_periods == 0 || !controlling || self.settling > 0 {
             self.settling = self.settling.saturating_sub(1);
             self.outside = 0;
-            return (0.0, None);
+            return false;
         }
+        true
+    }
+
+    /// The model as a virtual sensor, on a period [`Self::model_check_due`]
+    /// says is due: how far `contraction` lies outside the band
+    /// `[x_C(p_lo), x_E(p_hi)]` of `model` (0 inside), and whether it has
+    /// been beyond the band by more than the bound for
+    /// `implausible_periods` judged periods in a row.
+    ///
+    /// A model with effects widens the band ([`ModelBand`]): by the extra
+    /// ellipse offset of its width and rate, and through its shape
+    /// correction.
+    #[inline(always)]
+    pub fn check_model(
+        &mut self,
+        model: &LoadModel,
+        widen: &ModelBand<'_>,
+        contraction: f32,
+    ) -> (f32, Option<Fault>) {
         // Inverse model, eqs. (25)/(26): the contraction each branch has at
         // a pressure. At one pressure the expansion branch is the longer
         // contraction (HME = HMC − 2·y_hys), so the two bound the loop and

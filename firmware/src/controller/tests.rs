@@ -924,6 +924,41 @@ fn the_model_check_trips_after_its_time_outside_the_band() {
 }
 
 #[test]
+fn a_period_that_makes_a_minor_loop_leaves_the_model_check_to_the_next() {
+    // A muscle beyond the band every period while the set-point rises and
+    // turns back: the memory feedforward makes the turn's minor loop, and
+    // on those periods the check does not judge (no excess reported); its
+    // count holds, so the trip comes that many periods later.
+    let mut cfg = model_only();
+    cfg.feedforward = Feedforward::HysteresisMemory(NonLocalMemory::with_shape(1.0));
+    let s = cfg.safety;
+    let n = u32::from(s.implausible_periods);
+    let p = 0.3;
+    let mut c = past_start(cfg, p);
+    let turn = n / 2;
+    let mut skipped = 0;
+    for k in 0..(2 * n) {
+        let back = k.saturating_sub(turn) as f32;
+        let set_point = 0.12 + 1e-4 * (k.min(turn) as f32 - back);
+        let st = c.update(
+            &beside_band(&c, k, p, s.implausible_contraction + 0.01),
+            set_point,
+        );
+        if c.law.rebuilt_loop() {
+            skipped += 1;
+            assert_eq!(st.model_excess, 0.0, "{k}");
+        }
+        if let Some(f) = st.new_fault {
+            assert_eq!(f, Fault::Implausible(Check::Model));
+            assert!(skipped > 0, "the turn made no minor loop");
+            assert_eq!(k + 1, n + skipped, "{k}");
+            return;
+        }
+    }
+    panic!("never tripped");
+}
+
+#[test]
 fn the_model_band_follows_the_pressure_with_the_lag() {
     // A pressure step up: the contraction still at the old pressure's
     // band is accepted while the lagged minimum relaxes (lag 50 ms), then

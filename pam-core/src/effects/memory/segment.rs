@@ -27,15 +27,21 @@ pub(super) struct Segment {
     pub(super) wipe_sign: f32,
     /// `wipe_sign` times the threshold of [`wipe_threshold`].
     pub(super) wipe_mpa: f32,
-    /// Bits of the [`Blend`]'s `inv_merge` it was computed with.
+    /// Bits of the [`Blend`]'s `inv_merge` and `k` it was computed with.
     pub(super) merge_bits: u32,
+    pub(super) shape_bits: u32,
     /// `B(p_r)`.
     pub(super) b_r: f32,
     /// `B(p_t)` (or of the major loop's end).
     pub(super) b_t: f32,
-    /// `1/(B(p_r) − B(p_t))`, raised in magnitude to `1/merge_span` when the
-    /// loop is longer than the merge span; 0 for a degenerate loop.
+    /// `1/(B(p_r) − B(p_t))`, raised in magnitude to `1/span` when the
+    /// loop is longer than its decay span (the merge span, or the span that
+    /// keeps the curve monotone, see [`Segment::with_ends`]); 0 for a
+    /// degenerate loop.
     inv_progress: f32,
+    /// `k` of this loop's blend: the model's, or nearer 1 where a loop
+    /// shorter than its offset's change needs it to stay monotone.
+    k: f32,
     /// `d_t`.
     d_t: f32,
     /// `d_r − d_t`.
@@ -116,30 +122,51 @@ impl Segment {
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
+        let shape_bits = blend.k.to_bits();
         let d_t = match target {
             Some(t) => t.contraction - b_t,
             None => 0.0,
         };
         let span = b_r - b_t;
         let degenerate = !(span.abs() > 1e-6);
-        let inv_progress = if degenerate {
-            0.0
-        } else if span > 0.0 {
-            // `f32::max`/`min` without their NaN handling (a library call
-            // on the M4F): `1/span` is not NaN here, `inv_merge` finite.
-            let inv = 1.0 / span;
-            if inv >= blend.inv_merge {
-                inv
-            } else {
-                blend.inv_merge
-            }
+        let d_rt = (origin.contraction - b_r) - d_t;
+        let (inv_progress, k) = if degenerate {
+            (0.0, blend.k)
         } else {
-            let inv = 1.0 / span;
-            if inv <= -blend.inv_merge {
-                inv
+            let length = span.abs();
+            // The offset's change against the branch's progress `back`:
+            // the curve's slope in branch progress is `1 − back·w′(s)/decay`,
+            // `w′` at most `max(k, 1/k)`, so the decay span is at least
+            // `back·max(k, 1/k)` (the module docs). `f32::max`/`min`
+            // without their NaN handling (a library call on the M4F): every
+            // value here is finite; a `back` at or below 0 asks for nothing.
+            let back = if span > 0.0 { -d_rt } else { d_rt };
+            let monotone = back * blend.steepest;
+            let wanted = if monotone > blend.merge_span {
+                monotone
             } else {
-                -blend.inv_merge
-            }
+                blend.merge_span
+            };
+            let decay = if wanted < length { wanted } else { length };
+            let k = if monotone <= decay {
+                blend.k
+            } else if decay <= back {
+                // Beyond the curve's monotone reach: `k = 1` is the least
+                // backwards the blend gets.
+                1.0
+            } else if blend.k >= 1.0 {
+                // A loop shorter than its monotone decay span:
+                // `max(k, 1/k) = decay/back`.
+                decay / back
+            } else {
+                back / decay
+            };
+            let inv = if span > 0.0 {
+                1.0 / decay
+            } else {
+                -1.0 / decay
+            };
+            (inv, k)
         };
         let wipe_sign = match branch {
             Branch::Contraction => 1.0,
@@ -151,18 +178,16 @@ impl Segment {
             load_bits,
             max_contraction_bits,
             merge_bits,
+            shape_bits,
             wipe_sign,
             wipe_mpa: wipe_sign * wipe_threshold(target, branch, model.max_pressure_mpa()),
             b_r,
             b_t,
             inv_progress,
+            k,
             d_t,
             // A degenerate loop sits at the target's offset (s is 1 there).
-            d_rt: if degenerate {
-                0.0
-            } else {
-                (origin.contraction - b_r) - d_t
-            },
+            d_rt: if degenerate { 0.0 } else { d_rt },
             searching,
         }
     }
@@ -171,10 +196,18 @@ impl Segment {
     /// stroke; `s = 1 + (B(p) − B(p_r))·inv_progress` (clamped to `[0, 1]`
     /// by the blend).
     #[inline]
-    pub(super) fn eval(&self, blend: Blend, model: &LoadModel, x_branch: f32) -> f32 {
-        let w = blend.apply(1.0 + (x_branch - self.b_r) * self.inv_progress);
+    pub(super) fn eval(&self, model: &LoadModel, x_branch: f32) -> f32 {
+        let w = self.blend(1.0 + (x_branch - self.b_r) * self.inv_progress);
         let x = x_branch + self.d_t + self.d_rt * w;
         clamp(x, model.root_contraction(), model.max_contraction())
+    }
+
+    /// `w(s)` with this loop's `k` ([`Blend::apply`]'s operations).
+    #[inline(always)]
+    fn blend(&self, s: f32) -> f32 {
+        let s = clamp(s, 0.0, 1.0);
+        // The denominator is k + s(1 − k) >= min(k, 1) >= 0.05.
+        s / (self.k + s * (1.0 - self.k))
     }
 
     /// The branch contraction `B` at which the loop's curve (unclamped) is
@@ -187,12 +220,12 @@ impl Segment {
     /// `(s − 1)(k + (1 − k)s) + i·d_rt·s − i·c·(k + (1 − k)s) = 0`,
     /// `c = x_ref − d_t − B_r`: a quadratic in `s`. Each candidate is
     /// checked against its region and the curve.
-    pub(super) fn solve(&self, blend: Blend, x_ref: f32) -> Option<f32> {
+    pub(super) fn solve(&self, x_ref: f32) -> Option<f32> {
         let big_x = x_ref - self.d_t;
         let i = self.inv_progress;
         let s_of = |b: f32| 1.0 + (b - self.b_r) * i;
         let fits = |b: f32| {
-            let w = blend.apply(s_of(b));
+            let w = self.blend(s_of(b));
             let x = b + self.d_t + self.d_rt * w;
             (x - x_ref).abs() <= 1e-6 + 1e-5 * x_ref.abs()
         };
@@ -208,7 +241,7 @@ impl Segment {
         if i == 0.0 {
             return None;
         }
-        let (k, m) = (blend.k, blend.one_minus_k);
+        let (k, m) = (self.k, 1.0 - self.k);
         let c = big_x - self.b_r;
         let qa = m;
         let qb = k - m + i * self.d_rt - i * c * m;

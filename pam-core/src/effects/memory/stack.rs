@@ -329,12 +329,14 @@ impl<const N: usize> ReversalStack<N> {
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
         let merge_bits = blend.inv_merge.to_bits();
+        let shape_bits = blend.k.to_bits();
         let mut warm = None;
         if let Some(s) = &self.segment {
             let same_loop = s.branch == branch
                 && s.load_bits == load_bits
                 && s.max_contraction_bits == max_contraction_bits
-                && s.merge_bits == merge_bits;
+                && s.merge_bits == merge_bits
+                && s.shape_bits == shape_bits;
             let same_scale = s.scale_bits == scale_bits;
             // A loop still searching is not done at this scale.
             if same_loop && same_scale && !s.searching {
@@ -450,7 +452,7 @@ impl<const N: usize> ReversalStack<N> {
         let Some(seg) = self.segment(blend, model, branch, offset_scale) else {
             return x_branch;
         };
-        seg.eval(blend, model, x_branch)
+        seg.eval(model, x_branch)
     }
 
     /// The inverse of [`Self::contraction`]: the pressure in `[0, Pmax]` at
@@ -637,7 +639,7 @@ impl<const N: usize> ReversalStack<N> {
             );
             &inner
         };
-        if let Some(b) = seg.solve(blend, x_ref) {
+        if let Some(b) = seg.solve(x_ref) {
             return branch_pressure_mpa(model, clamp(b, lo_x, hi_x), branch, offset_scale);
         }
         // No closed-form candidate (x_ref beyond the curve's reach, or
@@ -646,7 +648,7 @@ impl<const N: usize> ReversalStack<N> {
         let (mut lo, mut hi) = (lo_x, hi_x);
         for _ in 0..MEMORY_INVERSE_STEPS {
             let mid = 0.5 * (lo + hi);
-            if seg.eval(blend, model, mid) <= x_ref {
+            if seg.eval(model, mid) <= x_ref {
                 lo = mid;
             } else {
                 hi = mid;
@@ -681,7 +683,7 @@ impl<const N: usize> ReversalStack<N> {
             // Negation is exact: `−p > −θ` is `p < θ`, infinities included.
             let wiped = seg.wipe_sign * pressure_mpa > seg.wipe_mpa;
             if !wiped && seg.scale_bits == offset_scale.to_bits() {
-                return Some(seg.eval(blend, model, x_branch));
+                return Some(seg.eval(model, x_branch));
             }
         } else if self.len == 0 {
             return None;
@@ -703,7 +705,7 @@ impl<const N: usize> ReversalStack<N> {
         let p = clamp(pressure_mpa, 0.0, model.max_pressure_mpa());
         self.wipe_out(p, branch);
         let seg = self.segment(blend, model, branch, offset_scale)?;
-        Some(seg.eval(blend, model, x_branch))
+        Some(seg.eval(model, x_branch))
     }
 }
 
