@@ -82,10 +82,10 @@ fn coulomb_rig_end_to_end_names_no_dynamic_effect_and_both_blobs_track() {
 /// On the coulomb rig the polynomial correction alone earns the static
 /// shape's place and fit's static model does not (its regime's cut), a
 /// few per cent apart on diagnose's held-out samples: a tie, so diagnose
-/// writes fit's static model and its blob tracks as fit's does. The
-/// correction written instead tracked this triangle at 128 % of fit's
-/// (seed 3), and the main job's at 130 % (seed 1). Release only (about
-/// ten seconds).
+/// writes fit's static model, with the memory its reversals earn, and its
+/// blob tracks no worse than fit's. The correction written instead
+/// tracked this triangle at 128 % of fit's (seed 3), and the main job's
+/// at 130 % (seed 1). Release only (about ten seconds).
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn where_the_static_shapes_tie_the_diagnosed_blob_tracks_no_worse_than_fits() {
