@@ -320,8 +320,8 @@ proptest! {
 /// contraction while the loop around it widened, and the curve went up to
 /// 0.03 outside the rate law's branches. (A blend with `k < 1` holds a
 /// reversal's offset while the branch moves, and where the loop narrows
-/// the curve can leave it, as it could before: with `k` 0.3 and a merge
-/// span of 0.1, by 0.007 here.)
+/// the curve can leave it, as it could before: with `k` 0.05 or 0.3 and
+/// merge spans of 0.05–0.1, by up to 0.007 on this run before.)
 #[test]
 fn memory_under_a_rate_law_stays_inside_its_loop() {
     let rate = RateDependence {

@@ -27,8 +27,10 @@ pub(super) struct Segment {
     pub(super) wipe_sign: f32,
     /// `wipe_sign` times the threshold of [`wipe_threshold`].
     pub(super) wipe_mpa: f32,
-    /// Bits of the [`Blend`]'s `inv_merge` and `k` it was computed with.
+    /// Bits of the [`Blend`]'s `inv_merge` it was computed with.
     pub(super) merge_bits: u32,
+    /// Bits of the [`Blend`]'s `k` it was computed with (this loop's own
+    /// `k`, below, may differ).
     pub(super) shape_bits: u32,
     /// `B(p_r)`.
     pub(super) b_r: f32,
