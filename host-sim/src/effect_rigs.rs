@@ -47,7 +47,7 @@ pub fn effect_rigs() -> [EffectRig; 5] {
         EffectRig {
             name: "coulomb",
             effect: "none",
-            change: "all 8 slip elements break away at 0.15 % (one Coulomb friction: a reversal crosses to the other branch at once, as the paper's model switches)",
+            change: "all 8 slip elements break away at 0.15 % (one Coulomb friction: at a reversal the contraction holds while the pressure crosses the loop, then follows the other branch; the paper's model jumps to the other branch at the reversal's pressure instead)",
             muscle: MuscleParams {
                 slip_contraction: [0.0015; SLIP_ELEMENTS],
                 ..reference
