@@ -195,19 +195,18 @@ impl NonLocalMemory {
     /// `k` to `[0.05, 50]` (NaN `s` → 0): in `[0, 1]`, monotone, never NaN.
     #[inline]
     pub fn blend(&self, s: f32) -> f32 {
-        self.blend_coeffs().apply(s)
+        rational_blend(self.blend_coeffs().k, s)
     }
 
-    /// `k` clamped to `[0.05, 50]` and `1 − k`, the per-sample constants of
-    /// [`Self::blend`] (the [`Simulator`](crate::Simulator) computes them once).
+    /// `k` clamped to `[0.05, 50]`, the merge span clamped and `max(k, 1/k)`:
+    /// the per-loop constants of the blend (the [`Simulator`](crate::Simulator)
+    /// computes them once).
     #[inline]
     pub(crate) fn blend_coeffs(&self) -> Blend {
         let k = clamp(self.shape, 0.05, 50.0);
         let merge_span = clamp(self.merge_span, MIN_MERGE_SPAN, UNLIMITED_MERGE_SPAN);
         Blend {
             k,
-            one_minus_k: 1.0 - k,
-            inv_merge: 1.0 / merge_span,
             merge_span,
             steepest: if k >= 1.0 { k } else { 1.0 / k },
         }
@@ -219,24 +218,19 @@ impl NonLocalMemory {
 pub(crate) struct Blend {
     /// `k` in `[0.05, 50]`.
     k: f32,
-    /// `1 − k`.
-    one_minus_k: f32,
-    /// `1/merge_span`, merge span clamped to `[MIN_MERGE_SPAN, 1]`.
-    inv_merge: f32,
-    /// The merge span so clamped.
+    /// The merge span clamped to `[MIN_MERGE_SPAN, 1]`.
     merge_span: f32,
     /// `max(k, 1/k)`: the blend's steepest slope `w′`.
     steepest: f32,
 }
 
-impl Blend {
-    /// `w(s)`, the same operations as [`NonLocalMemory::blend`].
-    #[inline]
-    fn apply(self, s: f32) -> f32 {
-        let s = clamp(s, 0.0, 1.0);
-        // The denominator is k + s(1 − k) >= min(k, 1) >= 0.05.
-        s / (self.k + s * self.one_minus_k)
-    }
+/// `w(s) = s/(k + s(1 − k))` for `s` clamped to `[0, 1]` and `k` in
+/// `[0.05, 50]`: [`NonLocalMemory::blend`] and each minor loop's blend.
+#[inline(always)]
+fn rational_blend(k: f32, s: f32) -> f32 {
+    let s = clamp(s, 0.0, 1.0);
+    // The denominator is k + s(1 − k) >= min(k, 1) >= 0.05.
+    s / (k + s * (1.0 - k))
 }
 
 /// A reversal point.

@@ -10,7 +10,7 @@ use crate::math::clamp;
 use super::ends::{end_pressure, newton_ends, Ends};
 #[cfg(doc)]
 use super::ReversalStack;
-use super::{Blend, Reversal};
+use super::{rational_blend, Blend, Reversal};
 
 /// The minor loop being followed, in branch coordinates, with what it was
 /// computed for.
@@ -27,7 +27,7 @@ pub(super) struct Segment {
     pub(super) wipe_sign: f32,
     /// `wipe_sign` times the threshold of [`wipe_threshold`].
     pub(super) wipe_mpa: f32,
-    /// Bits of the [`Blend`]'s `inv_merge` it was computed with.
+    /// Bits of the [`Blend`]'s merge span it was computed with.
     pub(super) merge_bits: u32,
     /// Bits of the [`Blend`]'s `k` it was computed with (this loop's own
     /// `k`, below, may differ).
@@ -123,7 +123,7 @@ impl Segment {
         let scale_bits = offset_scale.to_bits();
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
-        let merge_bits = blend.inv_merge.to_bits();
+        let merge_bits = blend.merge_span.to_bits();
         let shape_bits = blend.k.to_bits();
         let d_t = match target {
             Some(t) => t.contraction - b_t,
@@ -204,12 +204,10 @@ impl Segment {
         clamp(x, model.root_contraction(), model.max_contraction())
     }
 
-    /// `w(s)` with this loop's `k` ([`Blend::apply`]'s operations).
+    /// `w(s)` with this loop's `k`.
     #[inline(always)]
     fn blend(&self, s: f32) -> f32 {
-        let s = clamp(s, 0.0, 1.0);
-        // The denominator is k + s(1 − k) >= min(k, 1) >= 0.05.
-        s / (self.k + s * (1.0 - self.k))
+        rational_blend(self.k, s)
     }
 
     /// The branch contraction `B` at which the loop's curve (unclamped) is

@@ -328,7 +328,7 @@ impl<const N: usize> ReversalStack<N> {
         let scale_bits = offset_scale.to_bits();
         let load_bits = model.load_n().to_bits();
         let max_contraction_bits = model.max_contraction().to_bits();
-        let merge_bits = blend.inv_merge.to_bits();
+        let merge_bits = blend.merge_span.to_bits();
         let shape_bits = blend.k.to_bits();
         let mut warm = None;
         if let Some(s) = &self.segment {
