@@ -1,6 +1,7 @@
 //! The workspace's shape, checked: no two source files of a crate import
-//! each other in a loop, no pam-lab file over 900 lines, and the READMEs a
-//! newcomer reads first within their lengths.
+//! each other in a loop, no pam-lab file over 900 lines, the READMEs a
+//! newcomer reads first within their lengths, and every row of a Markdown
+//! table with its header's cells.
 //!
 //! The import graph is file-level: a file points at the file that defines
 //! the module a path names (`crate::`, `super::`, `self::` or a child
@@ -662,4 +663,95 @@ fn the_first_readmes_are_short() {
         assert!(n > 0, "{readme} missing");
         assert!(n <= most, "{readme}: {n} lines, at most {most}");
     }
+}
+
+/// The Markdown files of the workspace (not under `target/` or a hidden
+/// directory).
+fn markdown_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let mut entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
+    entries.sort();
+    for p in entries {
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if p.is_dir() {
+            if name != "target" && !name.starts_with('.') {
+                markdown_files(&p, out);
+            }
+        } else if name.ends_with(".md") {
+            out.push(p);
+        }
+    }
+}
+
+/// The cell separators of a table row: `|` outside code spans, not
+/// escaped.
+fn table_pipes(row: &str) -> usize {
+    let (mut n, mut code, mut escaped) = (0, false, false);
+    for c in row.trim().chars() {
+        match c {
+            '`' if !escaped => code = !code,
+            '|' if !code && !escaped => n += 1,
+            _ => {}
+        }
+        escaped = c == '\\';
+    }
+    n
+}
+
+/// `file:line: reason` for each row of a table (lines starting with `|`,
+/// outside fenced code) whose cells are not its header's.
+fn ragged_table_rows(name: &str, text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let (mut fenced, mut header) = (false, None);
+    for (i, line) in text.lines().enumerate() {
+        if line.starts_with("```") {
+            fenced = !fenced;
+        }
+        if fenced || !line.starts_with('|') {
+            header = None;
+            continue;
+        }
+        let n = table_pipes(line);
+        match header {
+            None => header = Some(n),
+            Some(h) if h != n => out.push(format!(
+                "{name}:{}: {} cells, the header has {}",
+                i + 1,
+                n.saturating_sub(1),
+                h.saturating_sub(1)
+            )),
+            Some(_) => {}
+        }
+    }
+    out
+}
+
+#[test]
+fn every_table_row_has_its_headers_cells() {
+    let root = workspace();
+    let mut files = Vec::new();
+    markdown_files(&root, &mut files);
+    assert!(files.len() > 5, "{} Markdown files found", files.len());
+    let ragged: Vec<String> = files
+        .iter()
+        .flat_map(|f| {
+            let text = std::fs::read_to_string(f).unwrap_or_default();
+            let name = f.strip_prefix(&root).unwrap_or(f).display().to_string();
+            ragged_table_rows(&name, &text)
+        })
+        .collect();
+    assert!(ragged.is_empty(), "{}", ragged.join("\n"));
+}
+
+#[test]
+fn the_table_check_finds_a_row_written_over_with_another_tables() {
+    let table =
+        "| a | b | c |\n|---|---|---|\n| `x|y` | 2 \\| 3 | 4 |\n| 1 | 2 |\n\n| d |\n|---|\n";
+    assert_eq!(
+        ragged_table_rows("t.md", table),
+        vec!["t.md:4: 2 cells, the header has 3".to_string()]
+    );
+    assert!(ragged_table_rows("t.md", "```\n| a |\n| b | c |\n```\n").is_empty());
 }
