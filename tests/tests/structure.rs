@@ -19,19 +19,28 @@ fn workspace() -> PathBuf {
         .to_path_buf()
 }
 
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+/// The files under `dir` whose extension is `ext`, in path order, not
+/// under a `target/` or hidden directory.
+fn files_with(dir: &Path, ext: &str, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     let mut entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
     entries.sort();
     for p in entries {
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
         if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|e| e == "rs") {
+            if name != "target" && !name.starts_with('.') {
+                files_with(&p, ext, out);
+            }
+        } else if p.extension().is_some_and(|e| e == ext) {
             out.push(p);
         }
     }
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    files_with(dir, "rs", out);
 }
 
 /// The file's code with its comments removed and its string and char
@@ -665,26 +674,6 @@ fn the_first_readmes_are_short() {
     }
 }
 
-/// The Markdown files of the workspace (not under `target/` or a hidden
-/// directory).
-fn markdown_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    let mut entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
-    entries.sort();
-    for p in entries {
-        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if p.is_dir() {
-            if name != "target" && !name.starts_with('.') {
-                markdown_files(&p, out);
-            }
-        } else if name.ends_with(".md") {
-            out.push(p);
-        }
-    }
-}
-
 /// The cell separators of a table row: `|` outside code spans, not
 /// escaped.
 fn table_pipes(row: &str) -> usize {
@@ -732,7 +721,7 @@ fn ragged_table_rows(name: &str, text: &str) -> Vec<String> {
 fn every_table_row_has_its_headers_cells() {
     let root = workspace();
     let mut files = Vec::new();
-    markdown_files(&root, &mut files);
+    files_with(&root, "md", &mut files);
     assert!(files.len() > 5, "{} Markdown files found", files.len());
     let ragged: Vec<String> = files
         .iter()
