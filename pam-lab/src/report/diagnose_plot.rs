@@ -256,6 +256,48 @@ fn shown_block(
     }
 }
 
+/// The smallest box holding the finite points added.
+#[derive(Clone, Copy, Debug)]
+struct Extent {
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+impl Default for Extent {
+    fn default() -> Self {
+        Extent {
+            x: (f64::INFINITY, f64::NEG_INFINITY),
+            y: (f64::INFINITY, f64::NEG_INFINITY),
+        }
+    }
+}
+
+impl Extent {
+    fn add(&mut self, (x, y): (f64, f64)) {
+        if x.is_finite() && y.is_finite() {
+            self.x = (self.x.0.min(x), self.x.1.max(x));
+            self.y = (self.y.0.min(y), self.y.1.max(y));
+        }
+    }
+
+    /// Each axis widened to at least its `min_span` about its middle, then
+    /// padded by a twentieth of its span on both sides, not below 0 where
+    /// no point is; `(0, min_span)` without a point.
+    fn padded(self, min_span: (f64, f64)) -> ((f64, f64), (f64, f64)) {
+        let axis = |(lo, hi): (f64, f64), span: f64| {
+            if lo > hi {
+                return (0.0, span);
+            }
+            let mid = 0.5 * (lo + hi);
+            let half = (0.5 * (hi - lo)).max(0.5 * span);
+            let pad = 0.1 * half;
+            let low = mid - half - pad;
+            (if lo >= 0.0 { low.max(0.0) } else { low }, mid + half + pad)
+        };
+        (axis(self.x, min_span.0), axis(self.y, min_span.1))
+    }
+}
+
 /// Pressure–contraction loops of one held-out block (`shown_block`):
 /// measured (grey) against the paper's model (left) and the model with the
 /// added effects (right). Contraction on x and pressure on y, as `fit.png`.
@@ -287,23 +329,21 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
             (pred, s[i].pressure_mpa)
         }
     };
-    let (mut x_hi, mut y_hi) = (0.0f64, 0.0f64);
+    // Both panels on the block's own extent (measured and both models),
+    // padded: an isometric block at one length spans a few newtons and
+    // kilopascals, which axes from 0 crush into a corner.
+    let mut extent = Extent::default();
     for &i in &idx {
-        for (x, y) in [
+        for p in [
             point(i),
             model_point(i, r.predicted_base[i]),
             model_point(i, r.predicted_after[i]),
         ] {
-            if x.is_finite() && y.is_finite() {
-                (x_hi, y_hi) = (x_hi.max(x), y_hi.max(y));
-            }
+            extent.add(p);
         }
     }
-    let (x_hi, y_hi) = if iso {
-        ((1.05 * x_hi).max(1.0), (1.05 * y_hi).max(0.1))
-    } else {
-        ((1.05 * x_hi).max(0.05), (1.05 * y_hi).max(0.1))
-    };
+    let min_span = if iso { (1.0, 0.01) } else { (0.005, 0.01) };
+    let ((x_lo, x_hi), (y_lo, y_hi)) = extent.padded(min_span);
     crate::report::plot::ensure_font();
     let root = BitMapBackend::new(path, (1600, 730)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -362,8 +402,8 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..x_hi, 0.0..y_hi)?;
-        let (xt, yt) = (tick_format(0.0, x_hi), tick_format(0.0, y_hi));
+            .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
+        let (xt, yt) = (tick_format(x_lo, x_hi), tick_format(y_lo, y_hi));
         chart
             .configure_mesh()
             .x_desc(x_desc)
@@ -402,7 +442,7 @@ pub fn loops_plot(r: &DiagnoseReport, record: &Record, path: &Path) -> anyhow::R
 
 #[cfg(test)]
 mod tests {
-    use super::{model_minus_measured, runs, shown_block};
+    use super::{model_minus_measured, runs, shown_block, Extent};
     use crate::record::Sample;
 
     #[test]
@@ -436,6 +476,28 @@ mod tests {
         assert_eq!(blk, (0, 3));
         assert_eq!(why, "the longest");
         assert!(shown_block(&[false; 3], &[0.0; 3], &[0.0; 3], &[0.0; 3]).is_none());
+    }
+
+    #[test]
+    fn the_loops_axes_hold_the_block_and_no_more() {
+        let mut e = Extent::default();
+        for p in [(170.0, 0.59), (187.0, 0.63), (f64::NAN, 9.0), (180.0, 0.60)] {
+            e.add(p);
+        }
+        let ((x_lo, x_hi), (y_lo, y_hi)) = e.padded((1.0, 0.01));
+        assert!(x_lo < 170.0 && x_lo > 168.0 && x_hi > 187.0 && x_hi < 189.0);
+        assert!(y_lo < 0.59 && y_lo > 0.58 && y_hi > 0.63 && y_hi < 0.64);
+        // A flat axis gets its least span; data from 0 keeps the axis at 0.
+        let mut flat = Extent::default();
+        flat.add((0.0, 0.3));
+        flat.add((0.1, 0.3));
+        let ((x_lo, _), (y_lo, y_hi)) = flat.padded((0.005, 0.01));
+        assert_eq!(x_lo, 0.0);
+        assert!(y_hi - y_lo >= 0.01 && y_lo < 0.3 && y_hi > 0.3);
+        assert_eq!(
+            Extent::default().padded((1.0, 0.1)),
+            ((0.0, 1.0), (0.0, 0.1))
+        );
     }
 
     #[test]
