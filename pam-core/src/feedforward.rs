@@ -82,8 +82,8 @@
 use crate::branch::Branch;
 use crate::effects::memory::{branch_pressure_mpa, MovedPoints};
 use crate::effects::{
-    Creep, CreepState, Effects, NonLocalMemory, PressureLag, PressureLagState, RateState, Reversal,
-    ReversalStack, ShapeInverse, MAX_OFFSET_SCALE, MAX_STEP_S,
+    Creep, CreepState, Effects, NonLocalMemory, PressureLag, PressureLagState, RateFilter,
+    RateState, Reversal, ReversalStack, ShapeInverse, MAX_OFFSET_SCALE, MAX_STEP_S,
 };
 use crate::error::Error;
 use crate::load_model::LoadModel;
@@ -121,6 +121,8 @@ pub struct ModelInverse {
     /// The lead's gain over one period
     /// ([`PressureLag::lag_gain`](crate::effects::PressureLag::lag_gain)).
     pressure_lag_gain: f32,
+    /// The rate law's filter at this period, made once.
+    rate_filter: Option<RateFilter>,
     /// Whether the shape has a stroke table that is not the identity
     /// (checked once here, so a shape without one costs no table work when
     /// the load switches).
@@ -175,7 +177,13 @@ impl ModelInverse {
             lead,
             pressure_lag_gain: lead.map_or(0.0, |l| l.lag_gain(dt_s)),
             shape_table: effects.shape.is_some_and(|s| !s.table.is_neutral()),
+            rate_filter: effects.rate.and_then(|r| RateFilter::of(&r, dt_s)),
         })
+    }
+
+    /// The rate law's filter at this period (`None` without a rate law).
+    pub fn rate_filter(&self) -> Option<&RateFilter> {
+        self.rate_filter.as_ref()
     }
 
     /// The effects inverted.
@@ -261,7 +269,7 @@ impl ModelInverse {
             }
             None => branch_pressure_mpa(model, x_model, branch, scale),
         };
-        if let Some(r) = &self.effects.rate {
+        if let Some(f) = &self.rate_filter {
             // The rate of the constraint pressure at the model contraction
             // (eq. 21, the middle of the loop), not of the commanded one:
             // the commanded pressure depends on the filtered rate through
@@ -269,12 +277,9 @@ impl ModelInverse {
             // (offset × d(scale)/d(rate) / filter time) exceeds 1 for
             // validated laws, so filtering the command oscillates. The
             // constraint pressure follows the desired motion only.
-            state.rate.update(
-                model.constraint_pressure_mpa(x_model),
-                self.dt_s,
-                r.filter_time_s,
-                r.max_rate_mpa_per_s,
-            );
+            state
+                .rate
+                .advance(model.constraint_pressure_mpa(x_model), f);
         }
         match &self.lead {
             Some(l) => l.command_mpa(

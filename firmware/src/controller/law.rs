@@ -18,9 +18,9 @@
 //! * The valve command is clamped to `[-1, 1]`.
 
 use super::config::{ControllerConfig, Feedforward};
-use super::monitor::ModelBand;
+use super::monitor::{extra_offset_mpa, MeasuredRate, ModelBand};
 use super::preisach::PreisachModel;
-use pam_core::effects::Effects;
+use pam_core::effects::{Effects, RateState};
 use pam_core::feedforward::{InverseState, ModelInverse};
 use pam_core::{clamp, Branch, Error, LoadModel, Params};
 
@@ -84,6 +84,9 @@ pub(super) struct Law {
     max_command_mpa: f32,
     inverse: Option<ModelInverse>,
     state: InverseState<MEMORY_DEPTH>,
+    /// With a rate law: the measured pressure through its filter, the
+    /// rate the muscle's loop is at (the model check's band, [`MeasuredRate`]).
+    measured_rate: RateState,
     /// The adapted stroke scale ([`super::adapt`]; 1: the flashed model),
     /// used by the paper's feedforward.
     pub stroke_scale: f32,
@@ -103,6 +106,7 @@ impl Law {
             max_command_mpa: cfg.safety.command_limit_mpa(pmax_mpa),
             inverse,
             state: InverseState::default(),
+            measured_rate: RateState::default(),
             stroke_scale: 1.0,
         })
     }
@@ -114,6 +118,7 @@ impl Law {
     pub fn reset(&mut self) {
         self.integral_mpa = 0.0;
         self.state.reset();
+        self.measured_rate = RateState::default();
     }
 
     /// The turning points belong to the old load's loop.
@@ -136,19 +141,26 @@ impl Law {
     /// call (the check runs after the law, so this period's), its shape at
     /// `load_n` (made once per load and kept with the feedforward's state,
     /// which inverts the same shape).
-    pub fn model_band(&mut self, params: &Params, model: &LoadModel, load_n: f32) -> ModelBand<'_> {
+    pub fn model_band<'a>(
+        &'a mut self,
+        params: &'a Params,
+        model: &LoadModel,
+        load_n: f32,
+    ) -> ModelBand<'a> {
         let Some(inv) = &self.inverse else {
             return ModelBand::default();
         };
-        let s = self.state.offset_scale();
-        let extra_offset_mpa = if s > 1.0 {
-            (s - 1.0) * model.ellipse_height_mpa()
-        } else {
-            0.0
-        };
+        let extra_offset_mpa = extra_offset_mpa(self.state.offset_scale(), model);
+        let measured = inv.effects().rate.map(|_| MeasuredRate {
+            effects: inv.effects(),
+            params,
+            load_n,
+            rate: &self.measured_rate,
+        });
         ModelBand {
             extra_offset_mpa,
             shape: inv.shape_at_load(&mut self.state, params, load_n),
+            measured,
         }
     }
 
@@ -169,6 +181,9 @@ impl Law {
         pressure_mpa: f32,
         contraction: f32,
     ) -> Command {
+        if let Some(f) = self.inverse.as_ref().and_then(|i| i.rate_filter()) {
+            self.measured_rate.advance(pressure_mpa, f);
+        }
         // Clamp: the set-point to the active model's stroke [R_i, Rx_i].
         let x_ref = clamp(
             desired_contraction,

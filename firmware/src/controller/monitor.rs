@@ -351,15 +351,65 @@ pub(super) struct Monitor {
     latch: Latch,
 }
 
+/// How far `x` lies outside `[lo, hi]`; 0 inside.
+fn excess_outside(lo: f32, hi: f32, x: f32) -> f32 {
+    if x < lo {
+        lo - x
+    } else if x > hi {
+        x - hi
+    } else {
+        0.0
+    }
+}
+
 /// How a model with effects widens the model check's band.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ModelBand<'a> {
-    /// `(S − 1)·be` for the offset scale `S > 1` of width and rate, MPa
-    /// (0 without them).
+    /// `(S − 1)·be` for the offset scale `S > 1` of width and rate the
+    /// feedforward used, MPa (0 without them).
     pub extra_offset_mpa: f32,
     /// The shape correction at the active load, as the feedforward keeps
     /// it (borrowed: no copy per period).
     pub shape: Option<&'a pam_core::effects::ShapeInverse>,
+    /// With a rate law: the offset scale at the measured pressure's rate.
+    pub measured: Option<MeasuredRate<'a>>,
+}
+
+/// The offset scale a rate law gives the measured pressure's rate: the
+/// loop the muscle itself is on. The feedforward's own scale follows the
+/// desired motion (the rate of its constraint pressure); where the loop
+/// corrects a disturbance, or the valves lag the command, the pressure the
+/// muscle sees moves at another rate, and its loop is that rate's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasuredRate<'a> {
+    /// The model's effects (its width and rate law).
+    pub effects: &'a pam_core::effects::Effects,
+    /// The model's parameters (the width's load steps).
+    pub params: &'a pam_core::Params,
+    /// The active load, N.
+    pub load_n: f32,
+    /// The measured pressure through the rate law's filter.
+    pub rate: &'a pam_core::effects::RateState,
+}
+
+impl MeasuredRate<'_> {
+    /// `(S − 1)·be` for the offset scale `S` at the measured rate, MPa
+    /// (0 where `S ≤ 1`).
+    pub fn extra_offset_mpa(&self, model: &LoadModel) -> f32 {
+        let s =
+            pam_core::feedforward::offset_scale(self.effects, self.params, self.load_n, self.rate);
+        extra_offset_mpa(s, model)
+    }
+}
+
+/// `(S − 1)·be` for an offset scale `S > 1`, MPa; 0 otherwise (a scale
+/// below 1 narrows the loop, inside the paper's band).
+pub fn extra_offset_mpa(scale: f32, model: &LoadModel) -> f32 {
+    if scale > 1.0 {
+        (scale - 1.0) * model.ellipse_height_mpa()
+    } else {
+        0.0
+    }
 }
 
 impl Monitor {
@@ -581,16 +631,41 @@ impl Monitor {
         // paper's branches at pressures moved out by `(S − 1)·be` bound it
         // (a scale below 1 narrows the loop, inside the paper's band).
         let extra = widen.extra_offset_mpa;
+        let mut excess = self.excess_beyond_band(model, extra, widen.shape, contraction);
+        // Outside the loop of the feedforward's rate: judged by the loop
+        // of the measured pressure's too, where that one is wider (only
+        // then: the scale costs a power on most laws).
+        if let Some(m) = &widen.measured {
+            if excess > self.band {
+                let wider = m.extra_offset_mpa(model);
+                if wider > extra {
+                    excess =
+                        excess.min(self.excess_beyond_band(model, wider, widen.shape, contraction));
+                }
+            }
+        }
+        self.count(excess)
+    }
+
+    /// How far `contraction` lies outside the band of the pressure
+    /// envelope widened by `extra` MPa (the shape applied), 0 inside.
+    fn excess_beyond_band(
+        &self,
+        model: &LoadModel,
+        extra: f32,
+        shape: Option<&pam_core::effects::ShapeInverse>,
+        contraction: f32,
+    ) -> f32 {
         let a = model.contraction(self.envelope_lo_mpa - extra, Branch::Contraction);
         let b = model.contraction(self.envelope_hi_mpa + extra, Branch::Expansion);
         // The shape correction is increasing along the stroke: it maps the
         // band's ends to the corrected band's.
-        let (a, b) = match &widen.shape {
+        let (a, b) = match shape {
             Some(s) => (s.apply(model, a), s.apply(model, b)),
             None => (a, b),
         };
         let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
-        self.judge(lo, hi, contraction)
+        excess_outside(lo, hi, contraction)
     }
 
     /// The model check for a Preisach model, whose forward evaluation
@@ -641,13 +716,12 @@ impl Monitor {
     /// periods in a row.
     #[inline(always)]
     fn judge(&mut self, lo: f32, hi: f32, contraction: f32) -> (f32, Option<Fault>) {
-        let excess = if contraction < lo {
-            lo - contraction
-        } else if contraction > hi {
-            contraction - hi
-        } else {
-            0.0
-        };
+        self.count(excess_outside(lo, hi, contraction))
+    }
+
+    /// Count a period `excess` outside the band (beyond the tolerance) or
+    /// inside it; the fault once the count reaches its limit.
+    fn count(&mut self, excess: f32) -> (f32, Option<Fault>) {
         if excess > self.band {
             self.outside = self.outside.saturating_add(1);
         } else {

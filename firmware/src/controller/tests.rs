@@ -1328,3 +1328,70 @@ fn adaptation_is_refused_with_a_feedforward_other_than_the_papers() {
         Err(ConfigError::Invalid(Setting::Adaptation))
     );
 }
+
+/// A muscle that is its own rate model: pam-core's `Simulator` of the
+/// paper's model with the rate law `rate`, fed `pressures` (one a period),
+/// its contraction read `offset` beyond it; the controller of that model
+/// holds a set-point while the pressure moves (a disturbance the loop
+/// corrects: the desired motion is still). The fault, if any.
+fn own_rate_muscle(
+    rate: pam_core::effects::RateDependence,
+    pressures: &[f32],
+    offset: f32,
+) -> Option<Fault> {
+    use pam_core::effects::Effects;
+    use pam_core::{Simulator, TrackerConfig};
+    let effects = Effects {
+        rate: Some(rate),
+        ..Effects::NONE
+    };
+    let mut cfg = model_only();
+    cfg.feedforward = Feedforward::HysteresisEffects(effects);
+    let coeffs = Coeffs::new(Params::DEFAULT).unwrap();
+    let mut c = Controller::new(coeffs, cfg, 200.0).unwrap();
+    let mut muscle =
+        Simulator::<16>::new(coeffs, effects, TrackerConfig::DEFAULT_PRESSURE, 200.0).unwrap();
+    for (k, &p) in pressures.iter().enumerate() {
+        let x = muscle.step(k as f32 * cfg.dt_s, p, 200.0) + offset;
+        let d = (k % 2) as f32 * 1e-4;
+        if let Some(f) = c.update(&good(p + d, x, 200.0 + d), 0.12).new_fault {
+            return Some(f);
+        }
+    }
+    None
+}
+
+/// The pressure held at 0.1 MPa for `hold_s`, then triangles between 0.1
+/// and 0.45 MPa at `rate_mpa_per_s`, for `cycles`, at the period `dt_s`.
+fn pressure_triangles(dt_s: f32, hold_s: f32, rate_mpa_per_s: f32, cycles: usize) -> Vec<f32> {
+    let mut p = vec![0.1; (hold_s / dt_s) as usize];
+    let per_leg = (0.35 / rate_mpa_per_s / dt_s) as usize;
+    for _ in 0..cycles {
+        for k in 0..per_leg {
+            p.push(0.1 + 0.35 * k as f32 / per_leg as f32);
+        }
+        for k in 0..per_leg {
+            p.push(0.45 - 0.35 * k as f32 / per_leg as f32);
+        }
+    }
+    p
+}
+
+#[test]
+fn a_muscle_that_is_its_own_rate_model_passes_the_model_check() {
+    // The loop a rate law widens is the loop of the pressure the muscle
+    // sees, not of the desired motion: with the set-point held, the
+    // feedforward's rate is at rest while the measured pressure sweeps at
+    // 0.3 MPa/s, where this law's loop is 2.8 times the paper's. Judged by
+    // the feedforward's rate alone, the muscle left the band and tripped.
+    let law = pam_core::effects::RateDependence::linear(1.0, 6.0);
+    let dt = ControllerConfig::DEFAULT.dt_s;
+    let sweeps = pressure_triangles(dt, 1.5, 0.3, 3);
+    assert_eq!(own_rate_muscle(law, &sweeps, 0.0), None);
+    // The check still sees a muscle beyond the widest loop the law allows.
+    let s = ControllerConfig::DEFAULT.safety;
+    assert_eq!(
+        own_rate_muscle(law, &sweeps, 0.1 + s.implausible_contraction),
+        Some(Fault::Implausible(Check::Model))
+    );
+}

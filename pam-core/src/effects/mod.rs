@@ -55,7 +55,7 @@ pub use offset::{
 };
 pub use pressure_delay::PressureDelay;
 pub use pressure_lag::{PressureLag, PressureLagState};
-pub use rate::{RateDependence, RateState};
+pub use rate::{RateDependence, RateFilter, RateState};
 pub use shape::{ConstraintShape, ShapeInverse, StrokeTable};
 pub use width::LoadDependentWidth;
 

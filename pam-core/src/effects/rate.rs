@@ -221,6 +221,20 @@ impl RateState {
         filter_time_s: f32,
         max_rate_mpa_per_s: f32,
     ) {
+        match RateFilter::new(dt_s, filter_time_s, max_rate_mpa_per_s) {
+            Some(f) => self.advance(pressure_mpa, &f),
+            None => {
+                if pressure_mpa.is_finite() {
+                    self.last_pressure_mpa = Some(pressure_mpa);
+                }
+            }
+        }
+    }
+
+    /// [`Self::update`] at the fixed period of `filter` (its constants made
+    /// once, [`RateFilter::new`]): the same arithmetic, bit for bit.
+    #[inline]
+    pub fn advance(&mut self, pressure_mpa: f32, filter: &RateFilter) {
         if !pressure_mpa.is_finite() {
             return;
         }
@@ -228,22 +242,50 @@ impl RateState {
             self.last_pressure_mpa = Some(pressure_mpa);
             return;
         };
+        // A step is bounded as a rate first (one valve jump cannot swamp
+        // the state numerically), the filter state at the law's `ṗ_max`.
+        let raw = clamp(
+            (pressure_mpa - last) / filter.dt_s,
+            -MAX_RATE_MPA_PER_S,
+            MAX_RATE_MPA_PER_S,
+        );
+        self.rate_mpa_per_s = clamp(
+            self.rate_mpa_per_s + filter.alpha * (raw - self.rate_mpa_per_s),
+            -filter.bound,
+            filter.bound,
+        );
+        self.last_pressure_mpa = Some(pressure_mpa);
+    }
+}
+
+/// The constants of [`RateState`]'s filter at a fixed period: made once
+/// (by the feedforward's inverse, for a period it runs at), so that each
+/// sample's update is the filter step alone ([`RateState::advance`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RateFilter {
+    /// The period, s, in `(0, 1]`.
+    dt_s: f32,
+    /// `dt/(τ + dt)`.
+    alpha: f32,
+    /// Where the state saturates, MPa/s.
+    bound: f32,
+}
+
+impl RateFilter {
+    /// The filter of time constant `filter_time_s` (negative, above
+    /// [`MAX_RATE_FILTER_TIME_S`] or non-finite: [`RATE_FILTER_TIME_S`])
+    /// whose state saturates at `max_rate_mpa_per_s` (not in
+    /// `(0, MAX_RATE_MPA_PER_S]`: [`MAX_RATE_MPA_PER_S`]), at the period
+    /// `dt_s`; `None` where `dt_s` is not in `(0, 1]` s.
+    pub fn new(dt_s: f32, filter_time_s: f32, max_rate_mpa_per_s: f32) -> Option<RateFilter> {
         if !(dt_s > 0.0 && dt_s <= 1.0) {
-            self.last_pressure_mpa = Some(pressure_mpa);
-            return;
+            return None;
         }
         let bound = if max_rate_mpa_per_s > 0.0 && max_rate_mpa_per_s <= MAX_RATE_MPA_PER_S {
             max_rate_mpa_per_s
         } else {
             MAX_RATE_MPA_PER_S
         };
-        // A step is bounded as a rate first (one valve jump cannot swamp
-        // the state numerically), the filter state at the law's `ṗ_max`.
-        let raw = clamp(
-            (pressure_mpa - last) / dt_s,
-            -MAX_RATE_MPA_PER_S,
-            MAX_RATE_MPA_PER_S,
-        );
         // Exact first-order hold discretisation would need exp(); dt ≪ τ at
         // the rates this runs at, where dt/(τ + dt) is within 1 % of it.
         let tau = if (0.0..=MAX_RATE_FILTER_TIME_S).contains(&filter_time_s) {
@@ -251,13 +293,16 @@ impl RateState {
         } else {
             RATE_FILTER_TIME_S
         };
-        let alpha = dt_s / (tau + dt_s);
-        self.rate_mpa_per_s = clamp(
-            self.rate_mpa_per_s + alpha * (raw - self.rate_mpa_per_s),
-            -bound,
+        Some(RateFilter {
+            dt_s,
+            alpha: dt_s / (tau + dt_s),
             bound,
-        );
-        self.last_pressure_mpa = Some(pressure_mpa);
+        })
+    }
+
+    /// The filter of the law `law` at the period `dt_s`.
+    pub fn of(law: &RateDependence, dt_s: f32) -> Option<RateFilter> {
+        RateFilter::new(dt_s, law.filter_time_s, law.max_rate_mpa_per_s)
     }
 }
 
@@ -523,5 +568,23 @@ mod tests {
             .validate(),
             Ok(())
         );
+    }
+
+    #[test]
+    fn a_filter_made_once_steps_as_the_update_does_bit_for_bit() {
+        // The feedforward's and the controller's filters advance with
+        // constants made once; the host's update makes them each sample.
+        for (dt, tau, max) in [(0.001, 0.3, 0.5), (0.02, 0.0, 5.0), (0.01, f32::NAN, -1.0)] {
+            let f = RateFilter::new(dt, tau, max).unwrap();
+            let (mut a, mut b) = (RateState::default(), RateState::default());
+            for k in 0..500 {
+                let p = 0.3 + 0.2 * (k as f32 * 0.05).sin() + if k == 250 { 0.3 } else { 0.0 };
+                a.update(p, dt, tau, max);
+                b.advance(p, &f);
+                assert_eq!(a, b, "{dt} {tau} {max} {k}");
+            }
+        }
+        assert_eq!(RateFilter::new(0.0, 0.3, 1.0), None);
+        assert_eq!(RateFilter::new(1.5, 0.3, 1.0), None);
     }
 }
