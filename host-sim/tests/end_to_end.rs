@@ -101,16 +101,19 @@ fn where_the_static_shapes_tie_the_diagnosed_blob_tracks_no_worse_than_fits() {
 /// hold after a step, so diagnose fits the linear rate law, whose loop at
 /// rest is what the slowest ramps show (a sub-linear law fitted there put
 /// the factor at rest at 0.00 and tripped at 9.8 s, seed 1, the main
-/// job's triangle). diagnose's closed-loop check refuses that model: on a
-/// muscle that is that model, a step's pressure rate widens its loop many
-/// times over and its own controller goes to its safe state
-/// (`Implausible(Model)`) or tracks worse than fit's; with it the rig
-/// tracked the triangle at 134 % of fit's. So the blob written is fit's,
-/// and it tracks the triangle without a trip. Release only (about half a
+/// job's triangle). diagnose's closed-loop check accepts that model: on a
+/// muscle that is that model its own controller never goes to its safe
+/// state. (It did, `Implausible(Model)` on steps held, while the
+/// firmware's model check judged a rate-law muscle by the loop of the
+/// feedforward's rate alone, not of the pressure the muscle sees; the
+/// check then refused the model and fit's was written.) The firmware
+/// boots diagnose's blob and tracks the rig's triangle without a trip, at
+/// 134 % of fit's error on the main job's (the rig's loop at rest is its
+/// friction's, not the law's: issue 32). Release only (about half a
 /// minute).
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
-fn rate_rig_is_named_rate_and_the_closed_loop_check_writes_fits_model() {
+fn rate_rig_is_named_rate_and_its_rate_law_runs_without_a_trip() {
     let rig = rig_named("rate");
     let cfg = BenchConfig::default_with_seed(1);
     let outcome = run_rig(&rig, &[Scenario::triangle(8, 4.0)], &cfg);
@@ -130,9 +133,12 @@ fn rate_rig_is_named_rate_and_the_closed_loop_check_writes_fits_model() {
         .expect("the model checked has the rate law");
     assert_eq!(rate.exponent, 1.0, "{rate:?}");
     assert!(rate.scale_at_rest > 0.1, "{rate:?}");
-    assert!(!check.accepted, "{check:#?}");
-    assert!(id.refused());
-    assert_eq!(id.diagnosed_blob, id.paper_blob, "fit's model is written");
+    for r in &check.runs {
+        assert_eq!(r.diagnosed.faults, 0, "{r:?}");
+    }
+    assert!(check.accepted, "{check:#?}");
+    assert!(!id.refused());
+    assert_ne!(id.diagnosed_blob, id.paper_blob, "the rate law is written");
     let diagnosed = outcome.runs[0]
         .diagnosed
         .as_ref()

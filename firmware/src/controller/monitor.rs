@@ -634,7 +634,8 @@ impl Monitor {
         let mut excess = self.excess_beyond_band(model, extra, widen.shape, contraction);
         // Outside the loop of the feedforward's rate: judged by the loop
         // of the measured pressure's too, where that one is wider (only
-        // then: the scale costs a power on most laws).
+        // then: the scale costs a power on a law whose exponent is not
+        // 0.5, 0.75 or 1).
         if let Some(m) = &widen.measured {
             if excess > self.band {
                 let wider = m.extra_offset_mpa(model);
