@@ -21,9 +21,19 @@
 //!    to the previous period: the rate of the desired motion. Not of the
 //!    pressure it commands, which depends on that rate through the offset:
 //!    that loop oscillates at 1 kHz (see [`ModelInverse::pressure_mpa`]).
-//!    The model sees the rate of the pressure it is given, so with this
-//!    effect the inverse is approximate (see `tests/feedforward.rs` for the
-//!    measured round trip);
+//!    The law's factor is computed at most on every second call, and not
+//!    on a call that starts a minor loop of the memory (a reversal's, or
+//!    the trial's as the set-point backs off), and held on the others (the
+//!    filter takes every period's pressure): where the scale holds, the
+//!    memory's cached loop serves as it is, so the work of moving its ends
+//!    to a new scale (a rate law changes it every time it is computed)
+//!    comes at most every second period and never with a new loop's
+//!    search, and a caller can judge its model in the others
+//!    ([`InverseState::rebuilt_loop`]; the firmware's model check). The
+//!    factor lags the filter by one or two periods, a small part of the
+//!    filter's time constant. The model sees the rate of
+//!    the pressure it is given, so with this effect the inverse is
+//!    approximate (see `tests/feedforward.rs` for the measured round trip);
 //! 4. memory: the pressure on the minor loop
 //!    ([`ReversalStack::feedforward_pressure_mpa`]: its ends follow a
 //!    changing offset scale by Newton steps) or, without memory or with no
@@ -104,6 +114,26 @@ pub fn offset_scale(effects: &Effects, params: &Params, load_n: f32, rate: &Rate
     clamp(m, 0.0, MAX_OFFSET_SCALE)
 }
 
+/// [`offset_scale`] with the rate law's factor given (`None` without a
+/// rate law): the same arithmetic, bit for bit (test
+/// `the_rate_laws_factor_comes_every_second_call_at_most_and_never_with_a_new_loop`).
+#[inline(always)]
+fn scale_with_rate_factor(
+    effects: &Effects,
+    params: &Params,
+    load_n: f32,
+    rate_factor: Option<f32>,
+) -> f32 {
+    let mut m = 1.0;
+    if let Some(w) = &effects.width {
+        m *= w.scale(params, load_n);
+    }
+    if let Some(f) = rate_factor {
+        m *= f;
+    }
+    clamp(m, 0.0, MAX_OFFSET_SCALE)
+}
+
 /// The constants of the inverse: the effects and what is derived from them
 /// for a fixed period (validated once, then infallible).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -143,6 +173,11 @@ pub struct InverseState<const N: usize> {
     /// The offset scale of the last call, minus 1 (so that the default
     /// state's 0 is the paper's scale).
     scale_minus_one: f32,
+    /// The rate law's factor on the offset ([`RateDependence::scale`](crate::effects::RateDependence::scale)),
+    /// computed at most every second call (the module's step 3), and
+    /// whether the last call computed it.
+    rate_factor: f32,
+    rate_factor_new: bool,
     /// The shape at the active load ready for its inverse, with the bits
     /// of the load and of the parameters [`ConstraintShape::at_load`](crate::effects::ConstraintShape::at_load)
     /// reads (minimum load, load step) it was made for.
@@ -256,7 +291,22 @@ impl ModelInverse {
             None => x_static,
         };
         let scale = if self.effects.width.is_some() || self.effects.rate.is_some() {
-            offset_scale(&self.effects, params, load_n, &state.rate)
+            // The rate law's factor, at most every second call and not
+            // in a new minor loop's first: see the module's step 3.
+            let rate_factor = self.effects.rate.map(|r| {
+                let new = if state.rate_factor_new {
+                    false
+                } else {
+                    self.effects.memory.is_none()
+                        || !state.memory.starts_loop(x_ref, branch, branch_switch)
+                };
+                if new {
+                    state.rate_factor = r.scale(&state.rate);
+                }
+                state.rate_factor_new = new;
+                state.rate_factor
+            });
+            scale_with_rate_factor(&self.effects, params, load_n, rate_factor)
         } else {
             1.0
         };
@@ -338,7 +388,9 @@ impl<const N: usize> InverseState<N> {
 
     /// The last period computed a minor loop's ends (two branch inverses),
     /// or started or went on searching for them (a reversal's new loop with
-    /// the width or rate effect), instead of using the cached loop.
+    /// the width or rate effect), or moved the cached loop's ends to a new
+    /// offset scale (the rate law's factor, every second period while it
+    /// changes), instead of using the cached loop as it was.
     pub fn rebuilt_loop(&self) -> bool {
         self.memory.rebuilt_loop
     }
@@ -366,7 +418,8 @@ struct MemoryState<const N: usize> {
     /// the set-point backs off from it (so its minor loop stays cached).
     trial_valid: bool,
     /// The last feedforward computed a minor loop's ends (two branch
-    /// inverses), or searched for them, instead of using the cached loop.
+    /// inverses), searched for them, or moved them to a new offset scale,
+    /// instead of using the cached loop as it was.
     rebuilt_loop: bool,
     /// What moving each point of `stacks` to another offset scale needs
     /// ([`MovedPoints`]), one per stack, in the same order.
@@ -381,6 +434,21 @@ impl<const N: usize> MemoryState<N> {
         } else {
             &self.stacks.0
         }
+    }
+
+    /// Whether [`Self::feedforward_mpa`] with these arguments starts a new
+    /// minor loop (pushes the extreme, or makes the trial), rather than
+    /// going on with a cached or flipped one.
+    #[inline(always)]
+    fn starts_loop(&self, x_ref: f32, branch: Branch, branch_switch: bool) -> bool {
+        if self.extreme.is_none() || self.trial_valid {
+            return false;
+        }
+        branch_switch
+            || match branch {
+                Branch::Contraction => x_ref < self.extreme_ref,
+                Branch::Expansion => x_ref > self.extreme_ref,
+            }
     }
 
     /// The memory and the trial.
@@ -451,7 +519,7 @@ impl<const N: usize> MemoryState<N> {
                 if make {
                     trial.set_pushed_moved(stack, e, scale, trial_moved, stack_moved);
                 }
-                let rebuilt = !trial.has_cached_loop();
+                let rebuilt = !trial.has_cached_loop_at(offset_scale);
                 let p_mpa = trial.feedforward_pressure_mpa_moved(
                     trial_moved,
                     params,
@@ -468,7 +536,7 @@ impl<const N: usize> MemoryState<N> {
         self.trial_valid = false;
         let (stack, _, moved, _) = memory_and_trial_moved(self);
         let before = stack.points().len();
-        let cached = stack.has_cached_loop();
+        let cached = stack.has_cached_loop_at(offset_scale);
         let p_mpa = if stack.points().is_empty() {
             // No reversal remembered: `x(p)` is the branch inverse, whose
             // inverse is the forward model, eqs. (25)/(26).
@@ -495,8 +563,8 @@ impl<const N: usize> MemoryState<N> {
                 moved.forget(i);
             }
         }
-        // A loop's ends were computed unless the cached loop served (a
-        // closed loop, popped here, was evaluated afresh).
+        // A loop's ends were computed unless the cached loop served at
+        // this scale (a closed loop, popped here, was evaluated afresh).
         self.rebuilt_loop = before > 0 && (!cached || after < before);
         // At or beyond the sweep's extreme: the turning point of the next reversal.
         self.extreme = Some(Reversal {
@@ -538,5 +606,68 @@ fn memory_and_trial<const N: usize>(
         (b, a)
     } else {
         (a, b)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::RateDependence;
+    use crate::{Coeffs, Params};
+
+    #[test]
+    fn the_rate_laws_factor_comes_every_second_call_at_most_and_never_with_a_new_loop() {
+        // Triangles of the set-point with reversals (a branch switch at
+        // each turn): the offset scale changes on no two calls in a row
+        // and on no call that starts a minor loop, and where it changes it
+        // is `offset_scale` of the rate filter as the call found it.
+        let params = Params::DEFAULT;
+        let coeffs = Coeffs::new(params).unwrap();
+        let load = 200.0;
+        let model = coeffs.load_model(load).unwrap();
+        let effects = Effects {
+            memory: Some(NonLocalMemory::with_shape(1.0)),
+            rate: Some(RateDependence::linear(1.0, 2.0)),
+            ..Effects::NONE
+        };
+        let inverse = ModelInverse::new(effects, 1e-3).unwrap();
+        let mut state = InverseState::<8>::default();
+        let (mut changes, mut loops, mut before_changed) = (0, 0, false);
+        let mut branch = Branch::Contraction;
+        for k in 0..6000u32 {
+            // Turns at 0.04 and 0.14 with a shorter inner loop every other cycle.
+            let phase = (k % 1000) as f32 / 1000.0;
+            let top = if (k / 1000) % 2 == 0 { 0.14 } else { 0.11 };
+            let x_ref = if phase < 0.5 {
+                0.04 + (top - 0.04) * 2.0 * phase
+            } else {
+                top - (top - 0.04) * 2.0 * (phase - 0.5)
+            };
+            let now = if phase < 0.5 {
+                Branch::Contraction
+            } else {
+                Branch::Expansion
+            };
+            let switch = now != branch;
+            branch = now;
+            let starts = state.memory.starts_loop(x_ref, branch, switch);
+            let expected = offset_scale(&effects, &params, load, &state.rate);
+            let scale_before = state.offset_scale();
+            let p = inverse.pressure_mpa(&mut state, &params, &model, load, x_ref, branch, switch);
+            assert!(p.is_finite());
+            let changed = state.offset_scale().to_bits() != scale_before.to_bits();
+            if changed {
+                changes += 1;
+                assert!(!before_changed, "{k}: two calls in a row");
+                assert!(!starts, "{k}: with a new loop");
+                assert_eq!(state.offset_scale().to_bits(), expected.to_bits(), "{k}");
+            }
+            loops += usize::from(starts);
+            before_changed = changed;
+        }
+        assert!(
+            loops >= 10 && changes > 2000,
+            "{loops} loops, {changes} changes"
+        );
     }
 }

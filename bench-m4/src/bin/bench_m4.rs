@@ -792,6 +792,14 @@ fn main() -> ! {
         memory: memory_only.memory,
         ..table
     };
+    // The costliest model `diagnose` writes with its default two effects:
+    // fit's static model (the stroke table) with the costliest pair, the
+    // memory and a rate law (whose factor moves the memory's loop).
+    let table_memory_rate = Effects {
+        memory: memory_only.memory,
+        rate: memory_rate.rate,
+        ..table
+    };
     // Every effect pam-core has: the five of the rows above and a 20 ms
     // pressure lag.
     let all = Effects {
@@ -845,6 +853,11 @@ fn main() -> ! {
         (
             "table_memory",
             Feedforward::HysteresisEffects(table_memory),
+            None,
+        ),
+        (
+            "table_memory_rate",
+            Feedforward::HysteresisEffects(table_memory_rate),
             None,
         ),
         ("effects", Feedforward::HysteresisEffects(all), None),

@@ -567,10 +567,13 @@ impl Controller {
         );
         // The model check, after the law: a period whose memory feedforward
         // made a minor loop's ends (a reversal's new loop, its search, a
-        // wipe-out's) leaves the check's two inverses to the next period, as
-        // it leaves the table build; the count holds (a fault's trip is a
-        // period later), and the command is replaced where the check trips.
-        if model_due && !self.law.rebuilt_loop() {
+        // wipe-out's, or its ends moved to the rate law's new factor) leaves
+        // the check's two inverses to the next period, as it leaves the
+        // table build; the next judged period counts for it, and the
+        // command is replaced where the check trips.
+        if model_due && self.law.rebuilt_loop() {
+            self.monitor.defer_model_check();
+        } else if model_due {
             let band = self
                 .law
                 .model_band(coeffs.params(), tracker.model(), tracker.load_n());

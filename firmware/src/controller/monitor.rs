@@ -340,6 +340,10 @@ pub(super) struct Monitor {
     predicted_hi: f32,
     implausible_periods: u16,
     outside: u16,
+    /// Due periods the model check left to the next one since it last
+    /// judged ([`Monitor::defer_model_check`]): counted with the next
+    /// judged period's verdict.
+    deferred: u16,
     /// Periods the model check pauses after a load switch, and how many
     /// of them are left.
     settle_periods: u16,
@@ -494,6 +498,7 @@ impl Monitor {
             predicted_hi: f32::NAN,
             implausible_periods: s.implausible_periods,
             outside: 0,
+            deferred: 0,
             // `as` saturates (and a NaN, excluded by validation, gives 0).
             settle_periods: (s.implausible_settle_s / dt_s + 0.5) as u16,
             // The check starts paused (`implausible_start_s`).
@@ -600,6 +605,7 @@ impl Monitor {
         if self.implausible_periods == 0 || !controlling || self.settling > 0 {
             self.settling = self.settling.saturating_sub(1);
             self.outside = 0;
+            self.deferred = 0;
             return false;
         }
         true
@@ -724,13 +730,25 @@ impl Monitor {
     /// inside it; the fault once the count reaches its limit.
     fn count(&mut self, excess: f32) -> (f32, Option<Fault>) {
         if excess > self.band {
-            self.outside = self.outside.saturating_add(1);
+            self.outside = self.outside.saturating_add(1).saturating_add(self.deferred);
         } else {
             self.outside = 0;
         }
+        self.deferred = 0;
         let fault =
             (self.outside >= self.implausible_periods).then_some(Fault::Implausible(Check::Model));
         (excess, fault)
+    }
+
+    /// A period the model check was due but left to the next one (the
+    /// feedforward's minor loop took that period's work: a reversal's new
+    /// loop, its search, a wipe-out's, or its ends moved to the rate law's
+    /// new factor, every second period while that changes). The next
+    /// judged period counts for it too, so the fault comes after
+    /// `implausible_periods` periods in a row outside the band whether or
+    /// not some were left to the next.
+    pub fn defer_model_check(&mut self) {
+        self.deferred = self.deferred.saturating_add(1);
     }
 
     /// The tracker switched the load model: pause the model check.
@@ -753,6 +771,7 @@ impl Monitor {
         self.supply.periods = 0;
         self.vent.periods = 0;
         self.outside = 0;
+        self.deferred = 0;
     }
 
     /// A trip (control → safe state) at period `now`; latches on more than

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::hal::SensorErrorKind;
-use pam_core::effects::NonLocalMemory;
+use pam_core::effects::{Effects, NonLocalMemory};
 use pam_core::Params;
 
 fn controller() -> Controller {
@@ -927,35 +927,71 @@ fn the_model_check_trips_after_its_time_outside_the_band() {
 fn a_period_that_makes_a_minor_loop_leaves_the_model_check_to_the_next() {
     // A muscle beyond the band every period while the set-point rises and
     // turns back: the memory feedforward makes the turn's minor loop, and
-    // on those periods the check does not judge (no excess reported); its
-    // count holds, so the trip comes that many periods later.
-    let mut cfg = model_only();
-    cfg.feedforward = Feedforward::HysteresisMemory(NonLocalMemory::with_shape(1.0));
-    let s = cfg.safety;
-    let n = u32::from(s.implausible_periods);
-    let p = 0.3;
-    let mut c = past_start(cfg, p);
-    let turn = n / 2;
-    let mut skipped = 0;
-    for k in 0..(2 * n) {
-        let back = k.saturating_sub(turn) as f32;
-        let set_point = 0.12 + 1e-4 * (k.min(turn) as f32 - back);
-        let st = c.update(
-            &beside_band(&c, k, p, s.implausible_contraction + 0.01),
-            set_point,
-        );
-        if c.law.rebuilt_loop() {
-            skipped += 1;
-            assert_eq!(st.model_excess, 0.0, "{k}");
+    // on those periods the check does not judge (no excess reported); the
+    // next judged period counts for them, so the trip comes after the
+    // configured number of periods all the same. With a rate law the
+    // loop's ends also move to the law's new factor, every second period
+    // at most while the set-point moves: the check still judges at least
+    // every second period.
+    let memory = Effects {
+        memory: Some(NonLocalMemory::with_shape(1.0)),
+        ..Effects::NONE
+    };
+    let memory_rate = Effects {
+        rate: Some(pam_core::effects::RateDependence::linear(1.0, 2.0)),
+        ..memory
+    };
+    // Periods left to the next by the memory alone.
+    let mut skipped_by_memory = 0;
+    for (effects, rate) in [(memory, false), (memory_rate, true)] {
+        let mut cfg = model_only();
+        cfg.feedforward = Feedforward::HysteresisEffects(effects);
+        let s = cfg.safety;
+        let n = u32::from(s.implausible_periods);
+        let p = 0.3;
+        let mut c = past_start(cfg, p);
+        let turn = n / 2;
+        let mut skipped = 0;
+        // Periods left to the next in a row just before this one.
+        let mut skipped_before = 0;
+        let mut tripped = false;
+        for k in 0..(2 * n) {
+            let back = k.saturating_sub(turn) as f32;
+            let set_point = 0.12 + 1e-4 * (k.min(turn) as f32 - back);
+            let st = c.update(
+                &beside_band(&c, k, p, s.implausible_contraction + 0.01),
+                set_point,
+            );
+            let left = c.law.rebuilt_loop();
+            if left {
+                skipped += 1;
+                assert_eq!(st.model_excess, 0.0, "{k}");
+            }
+            if let Some(f) = st.new_fault {
+                assert_eq!(f, Fault::Implausible(Check::Model));
+                assert!(skipped > 0, "the turn made no minor loop");
+                // The n-th period, or the first judged one after it.
+                assert!(
+                    k + 1 >= n && k + 1 - n <= skipped_before,
+                    "{k}, {skipped}, rate {rate}"
+                );
+                // The rate law's new factors leave more periods to the
+                // next, never more than the ones judged.
+                if rate {
+                    assert!(
+                        skipped > skipped_by_memory && 2 * skipped <= k + 2,
+                        "{skipped} of {k}, the memory alone {skipped_by_memory}"
+                    );
+                } else {
+                    skipped_by_memory = skipped;
+                }
+                tripped = true;
+                break;
+            }
+            skipped_before = if left { skipped_before + 1 } else { 0 };
         }
-        if let Some(f) = st.new_fault {
-            assert_eq!(f, Fault::Implausible(Check::Model));
-            assert!(skipped > 0, "the turn made no minor loop");
-            assert_eq!(k + 1, n + skipped, "{k}");
-            return;
-        }
+        assert!(tripped, "never tripped, rate {rate}");
     }
-    panic!("never tripped");
 }
 
 #[test]

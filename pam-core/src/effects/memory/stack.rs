@@ -234,6 +234,14 @@ impl<const N: usize> ReversalStack<N> {
         self.segment.as_ref().is_some_and(|s| !s.searching)
     }
 
+    /// [`Self::has_cached_loop`] at `offset_scale` (bit for bit): the next
+    /// call at that scale uses the cached loop without moving its ends.
+    pub(crate) fn has_cached_loop_at(&self, offset_scale: f32) -> bool {
+        self.segment
+            .as_ref()
+            .is_some_and(|s| !s.searching && s.scale_bits == offset_scale.to_bits())
+    }
+
     /// Forget the cached minor loop (the [`Simulator`](crate::Simulator)
     /// calls this where the branch changes; its model and offset scale change
     /// only with a load switch, which clears the stack, or are compared).
