@@ -21,17 +21,17 @@
 //!    to the previous period: the rate of the desired motion. Not of the
 //!    pressure it commands, which depends on that rate through the offset:
 //!    that loop oscillates at 1 kHz (see [`ModelInverse::pressure_mpa`]).
-//!    The law's factor is computed at most on every second call, and not
-//!    on a call that starts a minor loop of the memory (a reversal's, or
-//!    the trial's as the set-point backs off), and held on the others (the
-//!    filter takes every period's pressure): where the scale holds, the
-//!    memory's cached loop serves as it is, so the work of moving its ends
-//!    to a new scale (a rate law changes it every time it is computed)
-//!    comes at most every second period and never with a new loop's
-//!    search, and a caller can judge its model in the others
-//!    ([`InverseState::rebuilt_loop`]; the firmware's model check). The
-//!    factor lags the filter by one or two periods, a small part of the
-//!    filter's time constant. The model sees the rate of
+//!    With the memory the law's factor is computed at most on every second
+//!    call, and not on a call that starts a minor loop (a reversal's, or
+//!    the trial's as the set-point backs off) or goes on searching for a
+//!    new loop's ends, and held on the others (the filter takes every
+//!    period's pressure): where the scale holds, the memory's cached loop
+//!    serves as it is, so the work of moving its ends to a new scale (a
+//!    rate law changes it every time it is computed) comes at most every
+//!    second period and never with a new loop's search, and a caller can
+//!    judge its model in the others ([`InverseState::rebuilt_loop`]; the
+//!    firmware's model check). The factor lags the filter by a period or
+//!    a few, a small part of the filter's time constant. The model sees the rate of
 //!    the pressure it is given, so with this effect the inverse is
 //!    approximate (see `tests/feedforward.rs` for the measured round trip);
 //! 4. memory: the pressure on the minor loop
@@ -92,8 +92,8 @@
 use crate::branch::Branch;
 use crate::effects::memory::{branch_pressure_mpa, MovedPoints};
 use crate::effects::{
-    Creep, CreepState, Effects, NonLocalMemory, PressureLag, PressureLagState, RateFilter,
-    RateState, Reversal, ReversalStack, ShapeInverse, MAX_OFFSET_SCALE, MAX_STEP_S,
+    Creep, CreepState, Effects, NonLocalMemory, PressureLag, PressureLagState, RateDependence,
+    RateFilter, RateState, Reversal, ReversalStack, ShapeInverse, MAX_OFFSET_SCALE, MAX_STEP_S,
 };
 use crate::error::Error;
 use crate::load_model::LoadModel;
@@ -173,11 +173,12 @@ pub struct InverseState<const N: usize> {
     /// The offset scale of the last call, minus 1 (so that the default
     /// state's 0 is the paper's scale).
     scale_minus_one: f32,
-    /// The rate law's factor on the offset ([`RateDependence::scale`](crate::effects::RateDependence::scale)),
-    /// computed at most every second call (the module's step 3), and
-    /// whether the last call computed it.
+    /// The rate law's factor on the offset ([`RateDependence::scale`]),
+    /// whether there is one yet, and whether the last call that could
+    /// compute it held it instead (the module's step 3).
     rate_factor: f32,
-    rate_factor_new: bool,
+    rate_factor_known: bool,
+    rate_factor_held: bool,
     /// The shape at the active load ready for its inverse, with the bits
     /// of the load and of the parameters [`ConstraintShape::at_load`](crate::effects::ConstraintShape::at_load)
     /// reads (minimum load, load step) it was made for.
@@ -291,21 +292,11 @@ impl ModelInverse {
             None => x_static,
         };
         let scale = if self.effects.width.is_some() || self.effects.rate.is_some() {
-            // The rate law's factor, at most every second call and not
-            // in a new minor loop's first: see the module's step 3.
-            let rate_factor = self.effects.rate.map(|r| {
-                let new = if state.rate_factor_new {
-                    false
-                } else {
-                    self.effects.memory.is_none()
-                        || !state.memory.starts_loop(x_ref, branch, branch_switch)
-                };
-                if new {
-                    state.rate_factor = r.scale(&state.rate);
-                }
-                state.rate_factor_new = new;
-                state.rate_factor
-            });
+            let memory = self.effects.memory.is_some();
+            let rate_factor = self
+                .effects
+                .rate
+                .map(|r| state.rate_factor(&r, memory, x_ref, branch, branch_switch));
             scale_with_rate_factor(&self.effects, params, load_n, rate_factor)
         } else {
             1.0
@@ -396,6 +387,37 @@ impl<const N: usize> InverseState<N> {
     }
 }
 
+impl<const N: usize> InverseState<N> {
+    /// The rate law's factor for this call (the module's step 3): every
+    /// call without the memory; with it, on every second call that
+    /// neither starts a minor loop nor goes on searching for one's ends
+    /// (the first call computes it at once).
+    #[inline(always)]
+    fn rate_factor(
+        &mut self,
+        law: &RateDependence,
+        memory: bool,
+        x_ref: f32,
+        branch: Branch,
+        branch_switch: bool,
+    ) -> f32 {
+        if !memory || !self.rate_factor_known {
+            self.rate_factor = law.scale(&self.rate);
+            self.rate_factor_known = true;
+            self.rate_factor_held = false;
+            return self.rate_factor;
+        }
+        if self.memory.searching || self.memory.starts_loop(x_ref, branch, branch_switch) {
+            return self.rate_factor;
+        }
+        if self.rate_factor_held {
+            self.rate_factor = law.scale(&self.rate);
+        }
+        self.rate_factor_held = !self.rate_factor_held;
+        self.rate_factor
+    }
+}
+
 /// The memory part of the feedforward: the reversal points `(feedforward
 /// pressure, model contraction)` and the extreme of the current sweep (the
 /// next reversal's turning point).
@@ -421,6 +443,8 @@ struct MemoryState<const N: usize> {
     /// inverses), searched for them, or moved them to a new offset scale,
     /// instead of using the cached loop as it was.
     rebuilt_loop: bool,
+    /// The loop the last feedforward used is still searching for its ends.
+    searching: bool,
     /// What moving each point of `stacks` to another offset scale needs
     /// ([`MovedPoints`]), one per stack, in the same order.
     moved: (MovedPoints<N>, MovedPoints<N>),
@@ -492,6 +516,7 @@ impl<const N: usize> MemoryState<N> {
         offset_scale: f32,
     ) -> f32 {
         self.rebuilt_loop = false;
+        self.searching = false;
         if branch_switch {
             if let Some(r) = self.extreme.take() {
                 if self.trial_valid {
@@ -528,6 +553,7 @@ impl<const N: usize> MemoryState<N> {
                     branch.opposite(),
                     offset_scale,
                 );
+                self.searching = trial.searching();
                 self.rebuilt_loop = rebuilt;
                 return p_mpa;
             }
@@ -565,7 +591,9 @@ impl<const N: usize> MemoryState<N> {
         }
         // A loop's ends were computed unless the cached loop served at
         // this scale (a closed loop, popped here, was evaluated afresh).
+        let searching = stack.searching();
         self.rebuilt_loop = before > 0 && (!cached || after < before);
+        self.searching = searching;
         // At or beyond the sweep's extreme: the turning point of the next reversal.
         self.extreme = Some(Reversal {
             pressure_mpa: p_mpa,
@@ -618,9 +646,10 @@ mod tests {
     #[test]
     fn the_rate_laws_factor_comes_every_second_call_at_most_and_never_with_a_new_loop() {
         // Triangles of the set-point with reversals (a branch switch at
-        // each turn): the offset scale changes on no two calls in a row
-        // and on no call that starts a minor loop, and where it changes it
-        // is `offset_scale` of the rate filter as the call found it.
+        // each turn): the offset scale changes on no two calls in a row,
+        // on no call that starts a minor loop or goes on searching for a
+        // new loop's ends, and where it changes it is `offset_scale` of
+        // the rate filter as the call found it.
         let params = Params::DEFAULT;
         let coeffs = Coeffs::new(params).unwrap();
         let load = 200.0;
@@ -632,7 +661,7 @@ mod tests {
         };
         let inverse = ModelInverse::new(effects, 1e-3).unwrap();
         let mut state = InverseState::<8>::default();
-        let (mut changes, mut loops, mut before_changed) = (0, 0, false);
+        let (mut changes, mut loops, mut searches, mut before_changed) = (0, 0, 0, false);
         let mut branch = Branch::Contraction;
         for k in 0..6000u32 {
             // Turns at 0.04 and 0.14 with a shorter inner loop every other cycle.
@@ -651,6 +680,7 @@ mod tests {
             let switch = now != branch;
             branch = now;
             let starts = state.memory.starts_loop(x_ref, branch, switch);
+            let searching = state.memory.searching;
             let expected = offset_scale(&effects, &params, load, &state.rate);
             let scale_before = state.offset_scale();
             let p = inverse.pressure_mpa(&mut state, &params, &model, load, x_ref, branch, switch);
@@ -660,14 +690,16 @@ mod tests {
                 changes += 1;
                 assert!(!before_changed, "{k}: two calls in a row");
                 assert!(!starts, "{k}: with a new loop");
+                assert!(!searching, "{k}: while searching");
                 assert_eq!(state.offset_scale().to_bits(), expected.to_bits(), "{k}");
             }
             loops += usize::from(starts);
+            searches += usize::from(searching);
             before_changed = changed;
         }
         assert!(
-            loops >= 10 && changes > 2000,
-            "{loops} loops, {changes} changes"
+            loops >= 10 && searches >= loops && changes > 2000,
+            "{loops} loops, {searches} searching, {changes} changes"
         );
     }
 }

@@ -130,8 +130,8 @@ impl Law {
     /// (two branch inverses, table-free and slower while the tracker builds
     /// a new load's tables), or searched for them (a reversal's new loop
     /// with the width or rate effect, in its first periods, which also move
-    /// its turning point for the first time), instead of using its cached
-    /// loop.
+    /// its turning point for the first time), or moved them to the rate
+    /// law's new factor, instead of using its cached loop.
     pub fn rebuilt_loop(&self) -> bool {
         self.state.rebuilt_loop()
     }

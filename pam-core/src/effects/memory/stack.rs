@@ -25,6 +25,9 @@ pub struct ReversalStack<const N: usize> {
     scales: [f32; N],
     len: usize,
     segment: Option<Segment>,
+    /// The brackets `[lo, hi]` of the cached loop's two ends while they are
+    /// searched for ([`ReversalStack::search_ends`]).
+    brackets: [[f32; 2]; 2],
 }
 
 impl<const N: usize> Default for ReversalStack<N> {
@@ -34,6 +37,7 @@ impl<const N: usize> Default for ReversalStack<N> {
             scales: [f32::NAN; N],
             len: 0,
             segment: None,
+            brackets: [[0.0; 2]; 2],
         }
     }
 }
@@ -234,6 +238,13 @@ impl<const N: usize> ReversalStack<N> {
         self.segment.as_ref().is_some_and(|s| !s.searching)
     }
 
+    /// The cached loop's ends are still searched for
+    /// ([`Self::search_ends`]): the next call at the same scale takes their
+    /// next steps.
+    pub(crate) fn searching(&self) -> bool {
+        self.segment.as_ref().is_some_and(|s| s.searching)
+    }
+
     /// [`Self::has_cached_loop`] at `offset_scale` (bit for bit): the next
     /// call at that scale uses the cached loop without moving its ends.
     pub(crate) fn has_cached_loop_at(&self, offset_scale: f32) -> bool {
@@ -390,11 +401,11 @@ impl<const N: usize> ReversalStack<N> {
     }
 
     /// [`Self::segment_with`]'s search for a reversal's loop's ends: one
-    /// Newton step for each end ([`search_step`]), from [`new_loop_starts`]
-    /// for a new loop (the caller cleared the cache) and from the cached
-    /// ends for one still searching at the same scale. The search ends
-    /// where both ends are done (within the resolution, or at the pressure's
-    /// rounding, or solved exactly where a step cannot go on). Out of line:
+    /// bracketed Newton step for each end ([`search_step`]), from
+    /// [`new_loop_starts`] in the stroke for a new loop (the caller cleared
+    /// the cache) and from the cached ends in their brackets for one still
+    /// searching at the same scale. The search ends where both ends are
+    /// done (within the resolution, or at the pressure's rounding). Out of line:
     /// the path of every period with a rate law, a cached loop's ends moved
     /// to a new scale, stays as it was (inlined, this cost it up to 49
     /// instructions on the M4F).
@@ -420,8 +431,23 @@ impl<const N: usize> ReversalStack<N> {
                 true,
             ),
         };
-        let (b_r, done_r) = search_step(model, origin.pressure_mpa, branch, offset_scale, from.0);
-        let (b_t, done_t) = search_step(model, p_t, branch, offset_scale, from.1);
+        let [bracket_r, bracket_t] = if new {
+            let stroke = [model.root_contraction(), model.max_contraction()];
+            [stroke, stroke]
+        } else {
+            self.brackets
+        };
+        let (b_r, bracket_r, done_r) = search_step(
+            model,
+            origin.pressure_mpa,
+            branch,
+            offset_scale,
+            from.0,
+            bracket_r,
+        );
+        let (b_t, bracket_t, done_t) =
+            search_step(model, p_t, branch, offset_scale, from.1, bracket_t);
+        self.brackets = [bracket_r, bracket_t];
         // The search ends where both steps at this scale are within the
         // resolution (not tested in a new loop's first period: from the
         // unscaled branch its steps are not, and the test cost that period
@@ -899,9 +925,10 @@ mod tests {
                         let Some(seg) = s.segment else {
                             continue;
                         };
+                        let stroke = [m.root_contraction(), m.max_contraction()];
                         let first = (
-                            search_step(&m, origin.pressure_mpa, branch, scale, starts.0).0,
-                            search_step(&m, p_end, branch, scale, starts.1).0,
+                            search_step(&m, origin.pressure_mpa, branch, scale, starts.0, stroke).0,
+                            search_step(&m, p_end, branch, scale, starts.1, stroke).0,
                         );
                         assert_eq!(
                             (seg.b_r.to_bits(), seg.b_t.to_bits()),
@@ -913,7 +940,7 @@ mod tests {
                             branch_contraction(&m, p_end, branch, scale),
                         );
                         if seg.b_r == exact.0 && seg.b_t == exact.1 {
-                            // (An end at `Pmax`, or both fell back.)
+                            // (Both ends at `Pmax`, or exact at once.)
                             continue;
                         }
                         assert!(!s.has_cached_loop(), "{load} N, {scale}, {branch:?}");
@@ -970,9 +997,10 @@ mod tests {
                     let Some(seg) = s.segment else {
                         continue;
                     };
+                    let stroke = [m.root_contraction(), m.max_contraction()];
                     let first = (
-                        search_step(&m, origin.pressure_mpa, branch, 1.0, starts.0).0,
-                        search_step(&m, p_end, branch, 1.0, starts.1).0,
+                        search_step(&m, origin.pressure_mpa, branch, 1.0, starts.0, stroke).0,
+                        search_step(&m, p_end, branch, 1.0, starts.1, stroke).0,
                     );
                     assert_eq!(
                         (seg.b_r.to_bits(), seg.b_t.to_bits()),
