@@ -615,7 +615,8 @@ impl Monitor {
     /// says is due: how far `contraction` lies outside the band
     /// `[x_C(p_lo), x_E(p_hi)]` of `model` (0 inside), and whether it has
     /// been beyond the band by more than the bound for
-    /// `implausible_periods` judged periods in a row.
+    /// `implausible_periods` periods in a row (a due period left to this
+    /// one, [`Self::defer_model_check`], counts with its verdict).
     ///
     /// A model with effects widens the band ([`ModelBand`]): by the extra
     /// ellipse offset of its width and rate, and through its shape
