@@ -250,13 +250,14 @@ guarded = [(n, st) for n, st in runs if n[len("ctl_run_"):] not in OVER_BUDGET]
 worst = max((st[1] for _, st in guarded), default=None)
 if runs:
     print()
-    print("| controller, representative run (2050 steps) | mean | max | reversal steps: max | load-switch steps: max |")
-    print("|---|---:|---:|---:|---:|")
+    print("| controller, representative run (2050 steps) | mean | max | reversal steps: max | load-switch steps: max | nested run: max |")
+    print("|---|---:|---:|---:|---:|---:|")
     for n, st in runs:
         ff = n[len("ctl_run_"):]
         rev = stats.get("ctl_reversal_" + ff, (0, "-"))[1]
         ls = stats.get("ctl_load_switch_" + ff, (0, "-"))[1]
-        print(f"| `{ff}` | {st[0]:.0f} | {st[1]} | {rev} | {ls} |")
+        nested = stats.get("ctl_nested_" + ff, (0, "-"))[1]
+        print(f"| `{ff}` | {st[0]:.0f} | {st[1]} | {rev} | {ls} | {nested} |")
     print()
     print(f"| goal (issue 14) | measured | |")
     print("|---|---:|---|")
@@ -265,6 +266,13 @@ if runs:
         ff = n[len("ctl_run_"):]
         if ff in OVER_BUDGET:
             print(f"| the same, `{ff}` (not guarded: an open item) | {st[1]} | {'met' if st[1] <= WORST_BOUND else '**not met**'} |")
+    # The nested run (a wipe-out that exposes a remembered loop): measured
+    # and reported, not guarded (an open item of issue 30, bench-m4/README.md).
+    nested = [(n, st) for n, st in stats.items()
+              if n.startswith("ctl_nested_") and n[len("ctl_nested_"):] not in OVER_BUDGET]
+    if nested:
+        n_worst, st_worst = max(nested, key=lambda x: x[1][1])
+        print(f"| the same over the nested run (not guarded: an open item; the slowest `{n_worst[len('ctl_nested_'):]}`) | {st_worst[1]} | {'met' if st_worst[1] <= WORST_BOUND else '**not met**'} |")
     for n, st in runs:
         print(f"| mean ≤ {MEAN_BOUND}, `{n[len('ctl_run_'):]}` | {st[0]:.0f} | {'met' if st[0] <= MEAN_BOUND else '**not met**'} |")
 

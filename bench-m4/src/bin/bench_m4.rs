@@ -219,13 +219,29 @@ fn bench_controller_step(c: &mut Controller, io: &mut SimIo<'_>, x_ref: f32) -> 
     c.step(io, x_ref).pressure_cmd_mpa
 }
 
-/// Set-point turning points of the representative controller run
-/// (contraction): reversals, nested minor loops and their wipe-outs.
-const RUN_TURNS: [f32; 9] = [0.06, 0.14, 0.10, 0.13, 0.08, 0.15, 0.09, 0.12, 0.07];
+/// A controller run: the set-point's turning points (contraction) and the
+/// load schedule (from period, load in N).
+struct Run {
+    turns: [f32; 9],
+    loads: [(usize, f32); 3],
+}
+
+/// The representative controller run: reversals, nested minor loops and
+/// their wipe-outs, two load switches.
+const RUN: Run = Run {
+    turns: [0.06, 0.14, 0.10, 0.13, 0.08, 0.15, 0.09, 0.12, 0.07],
+    loads: [(0, 200.0), (600, 450.0), (1400, 300.0)],
+};
+/// A run whose turns close an inner loop while an outer one is remembered:
+/// passing 0.11 on the way to 0.08 wipes out the loop 0.11–0.125 and
+/// exposes the loop 0.13 → 0.10 mid-sweep (the representative run's load
+/// switches clear the memory before such a wipe-out).
+const NESTED_RUN: Run = Run {
+    turns: [0.06, 0.14, 0.10, 0.13, 0.11, 0.125, 0.08, 0.15, 0.06],
+    loads: [(0, 200.0), (1200, 450.0), (1700, 300.0)],
+};
 /// Set-point speed, contraction per period (0.2 per second at 1 kHz).
 const RUN_SPEED: f32 = 2e-4;
-/// Load schedule of the run: from period, load (N). Two load switches.
-const RUN_LOADS: [(usize, f32); 3] = [(0, 200.0), (600, 450.0), (1400, 300.0)];
 /// Periods of the run (the set-point's path length over its speed).
 const RUN_LEN: usize = 2050;
 /// Step classes in the run.
@@ -233,12 +249,12 @@ const REVERSAL: u8 = 1;
 const LOAD_SWITCH: u8 = 2;
 
 /// The run's set-point at each period.
-fn run_setpoints() -> [f32; RUN_LEN] {
+fn run_setpoints(run: &Run) -> [f32; RUN_LEN] {
     let mut out = [0.0f32; RUN_LEN];
-    let mut x = RUN_TURNS[0];
+    let mut x = run.turns[0];
     let mut next = 1;
     for v in out.iter_mut() {
-        if let Some(&target) = RUN_TURNS.get(next) {
+        if let Some(&target) = run.turns.get(next) {
             let d = target - x;
             if d.abs() <= RUN_SPEED {
                 x = target;
@@ -252,9 +268,9 @@ fn run_setpoints() -> [f32; RUN_LEN] {
     out
 }
 
-fn run_load(k: usize) -> f32 {
-    let mut load = RUN_LOADS[0].1;
-    for &(from, l) in &RUN_LOADS {
+fn run_load(run: &Run, k: usize) -> f32 {
+    let mut load = run.loads[0].1;
+    for &(from, l) in &run.loads {
         if k >= from {
             load = l;
         }
@@ -272,6 +288,7 @@ fn run_load(k: usize) -> f32 {
 /// previous pass) matches are measured; the classes of this pass are
 /// written to `classes`.
 fn run_controller(
+    run: &Run,
     base: &Controller,
     preisach: Option<&Preisach16Table>,
     bus: &SimBus,
@@ -281,7 +298,7 @@ fn run_controller(
 ) {
     let mut c = base.clone();
     let cal = PressureCalibration::ADC12_0_1MPA;
-    let refs = run_setpoints();
+    let refs = run_setpoints(run);
     let mut p = 0.15f32;
     let mut relays = base.preisach().map(|m| *m.model());
     // The plant's contraction at `p` under `load_n` (on `branch`, the
@@ -295,11 +312,11 @@ fn run_controller(
         (None, Some(r), Some(table)) => r.step(table, p, load_n),
         _ => fail("a Preisach controller's bench run needs its table"),
     };
-    let mut x = contraction_at(&c, p, run_load(0), Some(Branch::Contraction));
+    let mut x = contraction_at(&c, p, run_load(run, 0), Some(Branch::Contraction));
     for (k, (&x_ref, class)) in refs.iter().zip(classes.iter_mut()).enumerate() {
         bus.pressure_counts.set(cal.to_counts(p));
         bus.contraction.set(x);
-        bus.load_n.set(run_load(k));
+        bus.load_n.set(run_load(run, k));
         let measured = match select {
             Some((sel, mask)) => sel
                 .get(k)
@@ -331,7 +348,7 @@ fn run_controller(
                     || c.preisach().is_some_and(|m| m.model().switching()),
             ) * LOAD_SWITCH;
         p += (step.pressure_cmd_mpa - p) / 3.0;
-        x = contraction_at(&c, p, run_load(k + 1), None);
+        x = contraction_at(&c, p, run_load(run, k + 1), None);
     }
 }
 
@@ -346,7 +363,7 @@ fn controller_groups(
     io: &mut SimIo<'_>,
 ) {
     let mut classes = [0u8; RUN_LEN];
-    run_controller(base, preisach, bus, io, None, &mut classes);
+    run_controller(&RUN, base, preisach, bus, io, None, &mut classes);
     let sel = classes;
     for (what, mask) in [
         ("run", u8::MAX),
@@ -358,8 +375,28 @@ fn controller_groups(
             .filter(|&&c| mask == u8::MAX || c & mask != 0)
             .count();
         hprintln!("group ctl_{}_{} {}", what, name, n);
-        run_controller(base, preisach, bus, io, Some((&sel, mask)), &mut classes);
+        run_controller(
+            &RUN,
+            base,
+            preisach,
+            bus,
+            io,
+            Some((&sel, mask)),
+            &mut classes,
+        );
     }
+    // Every period of the nested run.
+    hprintln!("group ctl_nested_{} {}", name, RUN_LEN);
+    let all = [0u8; RUN_LEN];
+    run_controller(
+        &NESTED_RUN,
+        base,
+        preisach,
+        bus,
+        io,
+        Some((&all, u8::MAX)),
+        &mut classes,
+    );
 }
 
 #[entry]
