@@ -103,35 +103,30 @@ use crate::params::Params;
 /// Factor on the ellipse offset from the width and rate effects of
 /// `effects` at `load_n` and the filtered rate in `rate`, clamped to
 /// `[0, MAX_OFFSET_SCALE]`; 1 with neither.
+#[inline(always)]
 pub fn offset_scale(effects: &Effects, params: &Params, load_n: f32, rate: &RateState) -> f32 {
-    let mut m = 1.0;
-    if let Some(w) = &effects.width {
-        m *= w.scale(params, load_n);
-    }
-    if let Some(r) = &effects.rate {
-        m *= r.scale(rate);
-    }
-    clamp(m, 0.0, MAX_OFFSET_SCALE)
+    let rate_factor = match &effects.rate {
+        Some(r) => r.scale(rate),
+        None => 1.0,
+    };
+    scale_with_rate_factor(effects, params, load_n, rate_factor)
 }
 
-/// [`offset_scale`] with the rate law's factor given (`None` without a
-/// rate law): the same arithmetic, bit for bit (test
-/// `the_rate_laws_factor_comes_every_second_call_at_most_and_never_with_a_new_loop`).
+/// [`offset_scale`] with the rate law's factor given (1 without a rate
+/// law): the feedforward's, whose factor is computed every second call at
+/// most (the module's step 3).
 #[inline(always)]
 fn scale_with_rate_factor(
     effects: &Effects,
     params: &Params,
     load_n: f32,
-    rate_factor: Option<f32>,
+    rate_factor: f32,
 ) -> f32 {
     let mut m = 1.0;
     if let Some(w) = &effects.width {
         m *= w.scale(params, load_n);
     }
-    if let Some(f) = rate_factor {
-        m *= f;
-    }
-    clamp(m, 0.0, MAX_OFFSET_SCALE)
+    clamp(m * rate_factor, 0.0, MAX_OFFSET_SCALE)
 }
 
 /// The constants of the inverse: the effects and what is derived from them
@@ -293,10 +288,10 @@ impl ModelInverse {
         };
         let scale = if self.effects.width.is_some() || self.effects.rate.is_some() {
             let memory = self.effects.memory.is_some();
-            let rate_factor = self
-                .effects
-                .rate
-                .map(|r| state.rate_factor(&r, memory, x_ref, branch, branch_switch));
+            let rate_factor = match &self.effects.rate {
+                Some(r) => state.rate_factor(r, memory, x_ref, branch, branch_switch),
+                None => 1.0,
+            };
             scale_with_rate_factor(&self.effects, params, load_n, rate_factor)
         } else {
             1.0
@@ -385,9 +380,7 @@ impl<const N: usize> InverseState<N> {
     pub fn rebuilt_loop(&self) -> bool {
         self.memory.rebuilt_loop
     }
-}
 
-impl<const N: usize> InverseState<N> {
     /// The rate law's factor for this call (the module's step 3): every
     /// call without the memory; with it, on every second call that
     /// neither starts a minor loop nor goes on searching for one's ends
@@ -468,11 +461,17 @@ impl<const N: usize> MemoryState<N> {
         if self.extreme.is_none() || self.trial_valid {
             return false;
         }
-        branch_switch
-            || match branch {
-                Branch::Contraction => x_ref < self.extreme_ref,
-                Branch::Expansion => x_ref > self.extreme_ref,
-            }
+        branch_switch || self.backing_off(x_ref, branch)
+    }
+
+    /// The set-point `x_ref` is back from the sweep's extreme against
+    /// `branch`'s direction.
+    #[inline(always)]
+    fn backing_off(&self, x_ref: f32, branch: Branch) -> bool {
+        match branch {
+            Branch::Contraction => x_ref < self.extreme_ref,
+            Branch::Expansion => x_ref > self.extreme_ref,
+        }
     }
 
     /// The memory and the trial.
@@ -532,11 +531,7 @@ impl<const N: usize> MemoryState<N> {
             }
         }
         if let Some(e) = self.extreme {
-            let backing_off = match branch {
-                Branch::Contraction => x_ref < self.extreme_ref,
-                Branch::Expansion => x_ref > self.extreme_ref,
-            };
-            if backing_off {
+            if self.backing_off(x_ref, branch) {
                 let make = !self.trial_valid;
                 self.trial_valid = true;
                 let scale = self.extreme_scale;
